@@ -1,0 +1,162 @@
+"""The one weighted least-squares kernel behind every psbench solve.
+
+Per pixel p, with weights w_i(p) >= 0 (binary masks are 0/1 weights), solve
+
+    (sum_i w_i s_i s_i^T) b = sum_i w_i I_i s_i,      b = rho * n,
+
+by forming the six unique entries of the 3x3 normal matrix with one matrix product
+over all pixels and inverting it in closed form (adjugate / determinant). No Python
+loop runs over pixels; the pixel axis is processed in chunks to bound memory.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["wls", "ls", "split", "lambert", "residuals", "complete_three", "CHUNK"]
+
+#: pixels per chunk (bounds temporaries at ~k * CHUNK * 4 bytes)
+CHUNK = 1 << 18
+
+_IU = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+
+
+def ls(images, S):
+    """Unweighted least squares b = S^+ I (Eq. 2.17-2.18).
+
+    Parameters
+    ----------
+    images : (k, H, W) float32
+    S : (k, 3) array_like
+        Illumination vectors s_i = mu_i d_i.
+
+    Returns
+    -------
+    b : (H, W, 3) float32
+        Albedo-scaled normals rho * n.
+    """
+    k, H, W = images.shape
+    P = np.linalg.pinv(np.asarray(S, dtype=np.float64)).astype(np.float32)  # (3, k)
+    b = P @ images.reshape(k, -1)
+    return np.ascontiguousarray(b.T).reshape(H, W, 3)
+
+
+def wls(images, S, weights=None):
+    """Weighted least squares per pixel, closed-form 3x3 normal equations.
+
+    Parameters
+    ----------
+    images : (k, H, W) float32
+    S : (k, 3) array_like
+    weights : (k, H, W) float32 or bool, optional
+        Per-observation weights (True/1 = used). None: plain least squares.
+
+    Returns
+    -------
+    b : (H, W, 3) float32
+        rho * n. Pixels whose weighted normal matrix is singular (fewer than three
+        independent observations with weight) fall back to plain least squares;
+        callers that mask use :func:`complete_three` first so this never happens
+        for 0/1 masks.
+    """
+    if weights is None:
+        return ls(images, S)
+    k, H, W = images.shape
+    S = np.asarray(S, dtype=np.float64)
+    outer = (S[:, :, None] * S[:, None, :])[:, _IU[0], _IU[1]].astype(np.float32)  # (k, 6)
+    St = S.T.astype(np.float32)  # (3, k)
+    I2 = images.reshape(k, -1)
+    W2 = weights.reshape(k, -1)
+    N = I2.shape[1]
+    out = np.empty((N, 3), dtype=np.float32)
+    P = np.linalg.pinv(S).astype(np.float32)
+    for lo in range(0, N, CHUNK):
+        hi = min(N, lo + CHUNK)
+        w = W2[:, lo:hi].astype(np.float32, copy=False)
+        a = outer.T @ w  # (6, n)
+        r = St @ (w * I2[:, lo:hi])  # (3, n)
+        out[lo:hi] = _solve_sym3(a, r, fallback=P @ I2[:, lo:hi])
+    return out.reshape(H, W, 3)
+
+
+def _solve_sym3(a, r, fallback):
+    a00, a01, a02, a11, a12, a22 = a
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    tr = a00 + a11 + a22
+    ok = np.abs(det) > 1e-6 * tr * tr * tr
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0).astype(np.float32)
+    r0, r1, r2 = r
+    x = np.empty((r.shape[1], 3), dtype=np.float32)
+    x[:, 0] = (c00 * r0 + c01 * r1 + c02 * r2) * inv
+    x[:, 1] = (c01 * r0 + c11 * r1 + c12 * r2) * inv
+    x[:, 2] = (c02 * r0 + c12 * r1 + c22 * r2) * inv
+    if not ok.all():
+        bad = ~ok
+        x[bad] = fallback[:, bad].T
+    return x
+
+
+def split(b, *, eps=1e-6):
+    """Split rho * n into unit normals and albedo.
+
+    Pixels with albedo <= ``eps`` (all intensities about zero) get the normal
+    (0, 0, 1) and albedo 0, as the thesis prescribes (Section 3.2).
+
+    Returns
+    -------
+    normals : (H, W, 3) float32
+    albedo : (H, W) float32
+    """
+    rho = np.linalg.norm(b, axis=-1)
+    ok = rho > eps
+    n = np.zeros_like(b)
+    n[..., 2] = 1.0
+    n[ok] = b[ok] / rho[ok, None]
+    return n, np.where(ok, rho, 0.0).astype(np.float32)
+
+
+def lambert(b, S):
+    """Lambert images rho * s_i . n (no clamping), (k, H, W) float32 (Eq. 3.14)."""
+    H, W, _ = b.shape
+    S = np.asarray(S, dtype=np.float32)
+    return (S @ b.reshape(-1, 3).T).reshape(-1, H, W)
+
+
+def residuals(images, b, S):
+    """Signed residuals I - L for every observation, (k, H, W) float32 (Eq. 3.1)."""
+    return images - lambert(b, S)
+
+
+def complete_three(valid, residual):
+    """Eq. 3.1's rule: where fewer than three observations are valid, add the masked
+    ones with the least absolute residual until three are used.
+
+    Parameters
+    ----------
+    valid : (k, H, W) bool
+    residual : (k, H, W) float
+        Residuals of the unmasked least-squares solution (absolute value is used).
+
+    Returns
+    -------
+    valid : (k, H, W) bool (a copy where anything changed)
+    """
+    count = valid.sum(axis=0)
+    short = count < 3
+    if not short.any():
+        return valid
+    valid = valid.copy()
+    r = np.abs(residual[:, short]).astype(np.float32)
+    v = valid[:, short]
+    r[v] = -np.inf  # already-valid observations sort first
+    order = np.argsort(r, axis=0, kind="stable")[:3]
+    cols = np.arange(v.shape[1])
+    for j in range(3):
+        v[order[j], cols] = True
+    valid[:, short] = v
+    return valid
