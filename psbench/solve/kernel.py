@@ -36,8 +36,8 @@ def ls(images, S):
     """
     k, H, W = images.shape
     P = np.linalg.pinv(np.asarray(S, dtype=np.float64)).astype(np.float32)  # (3, k)
-    b = P @ images.reshape(k, -1)
-    return np.ascontiguousarray(b.T).reshape(H, W, 3)
+    # (N, k) @ (k, 3) on a transposed view writes the (H, W, 3) layout directly
+    return (images.reshape(k, -1).T @ P.T).reshape(H, W, 3)
 
 
 def wls(images, S, weights=None):
@@ -112,12 +112,16 @@ def split(b, *, eps=1e-6):
     normals : (H, W, 3) float32
     albedo : (H, W) float32
     """
-    rho = np.linalg.norm(b, axis=-1)
-    ok = rho > eps
-    n = np.zeros_like(b)
-    n[..., 2] = 1.0
-    n[ok] = b[ok] / rho[ok, None]
-    return n, np.where(ok, rho, 0.0).astype(np.float32)
+    eps = np.float32(eps)
+    sq = b * b
+    rho = sq[..., 0] + sq[..., 1] + sq[..., 2]
+    np.sqrt(rho, out=rho)
+    n = b * (np.float32(1.0) / np.maximum(rho, eps))[..., None]
+    bad = rho <= eps
+    if bad.any():
+        n[bad] = (0.0, 0.0, 1.0)
+        rho[bad] = 0.0
+    return n, rho.astype(np.float32, copy=False)
 
 
 def lambert(b, S):
