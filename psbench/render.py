@@ -1,0 +1,510 @@
+"""Synthetic photometric-stereo images with ground truth (thesis Sections 2.3, 5.2, 5.3).
+
+:func:`render` shades a height-field surface under k lights with the Lambert
+(Eq. 2.12), Phong (Eq. 2.13) or Torrance–Sparrow (Eq. 2.14–2.15) model, puts in
+self and cast shadows, adds Gaussian camera noise and optional quantisation,
+and returns a :class:`Scene` holding the image stack and the per-image ground
+truth (highlights, self shadows, cast shadows) that the quality factor needs.
+
+Defaults follow Table 5.1: Torrance–Sparrow, rho_d = rho_s = 1, m = 2, light
+power 1, orthographic camera v = (0, 0, 1), distant lights, no inverse-square
+falloff, no perspective.
+
+Conventions
+-----------
+Frame x right, y up (y = -row), camera at +z; pixel (r, c) sits at
+x = c - (W-1)/2, y = (H-1)/2 - r, z = height (pixel units). Light directions
+point from the surface towards the light. Everything is float32, computed light
+by light into preallocated (k, H, W) stacks.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ._checks import PsbenchError, choice
+from .lights import Layout, layout
+from .shadowmap import shadow_map
+
+__all__ = ["render", "Scene", "MODELS", "SHADOWS"]
+
+#: reflection models
+MODELS = ("lambert", "phong", "ts")
+#: accepted values of ``shadows``
+SHADOWS = (True, False, "all", "self")
+#: quantisation bit depths accepted by ``quantize``
+QUANTIZE_BITS = tuple(range(1, 17))
+
+
+@dataclass(eq=False, repr=False)
+class Scene:
+    """A rendered image stack with ground truth.
+
+    Attributes
+    ----------
+    images : (k, H, W) float32
+        Rendered images (noise and quantisation applied); 0 outside the object mask.
+    highlight : (k, H, W) bool
+        Specular term above ``highlight_fraction`` of the clean image's dynamic
+        range (see :func:`render`), on lit object pixels.
+    self_shadow : (k, H, W) bool
+        s.n <= 0 on the object.
+    cast_shadow : (k, H, W) bool
+        Occluded by the height field and not self-shadowed, on the object.
+    surface : object
+        The rendered surface (``.height .mask .normals``).
+    lights : Layout
+        The lights (with ``positions`` for near lights).
+    model : str
+    noise : float
+        Noise setting (fraction of each image's dynamic range).
+    seed : int
+    sigma : (k,) float32
+        Standard deviation of the noise added to each image.
+    dynamic_range : (k,) float32
+        max - min of each clean image over the object mask.
+    shadows : bool or str
+    quantize : int or None
+    highlight_fraction : float
+    """
+
+    images: np.ndarray
+    highlight: np.ndarray
+    self_shadow: np.ndarray
+    cast_shadow: np.ndarray
+    surface: Any
+    lights: Layout
+    model: str
+    noise: float
+    seed: int
+    sigma: np.ndarray
+    dynamic_range: np.ndarray
+    shadows: Any = True
+    quantize: int | None = None
+    highlight_fraction: float = 0.1
+    _shader: Any = field(default=None, repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def shadow(self) -> np.ndarray:
+        """(k, H, W) bool: self or cast shadow."""
+        return self.self_shadow | self.cast_shadow
+
+    @property
+    def object_mask(self) -> np.ndarray:
+        """(H, W) bool object mask of the surface."""
+        return np.asarray(self.surface.mask, dtype=bool)
+
+    @property
+    def k(self) -> int:
+        return int(self.images.shape[0])
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(self.images.shape[1:])
+
+    def _parts(self):
+        if "diffuse" not in self._cache:
+            diff, spec = self._shader.components(self.self_shadow | self.cast_shadow)
+            self._cache["diffuse"], self._cache["specular"] = diff, spec
+        return self._cache["diffuse"], self._cache["specular"]
+
+    @property
+    def diffuse(self) -> np.ndarray:
+        """(k, H, W) float32 clean Lambert part (light power, falloff and shadows
+        applied, no noise), computed on first use."""
+        return self._parts()[0]
+
+    @property
+    def specular(self) -> np.ndarray:
+        """(k, H, W) float32 clean specular part (zero for ``lambert``), computed on
+        first use."""
+        return self._parts()[1]
+
+    @property
+    def clean(self) -> np.ndarray:
+        """(k, H, W) float32 noiseless, unquantised images (diffuse + specular)."""
+        d, s = self._parts()
+        return d + s
+
+    def __repr__(self) -> str:
+        k, H, W = self.images.shape
+        return (f"Scene(model={self.model!r}, lights={self.lights.name!r}, k={k}, "
+                f"shape=({H}, {W}), noise={self.noise:g}, seed={self.seed})")
+
+
+def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
+           rho_d=1.0, rho_s=1.0, m=2.0, quantize=None, highlight_fraction=0.1,
+           light_positions=None, falloff=False, perspective=None, phong_m=20.0,
+           shadow_bias=0.05) -> Scene:
+    """Render a photometric-stereo image stack with ground truth.
+
+    Parameters
+    ----------
+    surface : object with ``.height (H, W)``, ``.mask (H, W) bool``, ``.normals (H, W, 3)``
+        E.g. :func:`psbench.make_surface`; any object with these fields works.
+        Heights are in pixel units. The whole height field casts shadows (also
+        outside the mask); non-finite heights are treated as the lowest height.
+    lights : Layout, (k, 3) array_like or str
+        Distant lights (:func:`psbench.layout`: ``"45x8"``, ``"30x8+60x8"``, ...);
+        ``power`` (mu) scales every term of image i. Directions below the horizon
+        (z < 0) are refused.
+    model : {"ts", "lambert", "phong"}
+        ``"lambert"``: I = mu rho_d (s.n) (Eq. 2.12).
+        ``"phong"``: I = mu [rho_s max(r.v, 0)^phong_m + rho_d (s.n)],
+        r = 2 (s.n) n - s (Eq. 2.13).
+        ``"ts"`` (Torrance–Sparrow): I = mu [rho_s exp(-m^2 arccos(n_h.n)^2) + rho_d (s.n)],
+        n_h = (v + s) / |v + s| (Eq. 2.14–2.15).
+        Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow.
+    shadows : {True, "all", False, "self"}
+        True / ``"all"``: self and cast shadows. False / ``"self"``: no cast
+        shadows; self-shadowed points (s.n <= 0) are still 0, because light
+        cannot be negative, and are still reported in ``self_shadow`` (the two
+        spellings are equivalent; False is what configs use for "diffuse"
+        experiments without cast shadows).
+    noise : float, default 0
+        Additive zero-mean Gaussian noise, sigma_i = noise * (max_i - min_i) of the
+        clean image i over the object mask (0.05 = 5 %). Added on the object only;
+        results are not clipped (unless ``quantize``).
+    seed : int
+        Seed of ``numpy.random.default_rng`` for the noise.
+    rho_d, rho_s : float or (H, W) array_like
+        Diffuse and specular albedo (>= 0).
+    m : float, default 2
+        Torrance–Sparrow roughness/shininess (> 0; Table 5.1 uses 2).
+    phong_m : float, default 20
+        Phong exponent (> 0), separate from ``m`` because the Phong lobe needs a
+        much larger exponent to be comparably narrow.
+    quantize : int, optional
+        Bit depth q in 1..16: after noise, images are clipped to [0, M] with M the
+        stack maximum over the object and rounded to 2^q - 1 levels of M; the
+        result stays float32 in the same scale (an ideal q-bit camera whose full
+        scale is the brightest pixel).
+    highlight_fraction : float, default 0.1
+        Ground-truth highlight: lit object pixels where the specular term exceeds
+        ``highlight_fraction`` x (max - min) of the clean image over the object
+        mask. The thesis leaves this undefined; 0.1 is psbench's choice.
+    light_positions : (k, 3) array_like, optional
+        Near point lights at these positions (pixel units, origin at the image
+        centre on the height datum, z up; z > 0). The direction is then computed
+        per pixel from the surface point to the light. Default: ``lights.positions``
+        if the layout has them, else distant lights. The returned layout's
+        directions are those from the image centre (height 0) to each light.
+        Cast shadows of near lights use that central direction (parallel-ray
+        approximation); self shadows and shading are exact per pixel.
+    falloff : bool, default False
+        Near lights only: multiply by (d0 / |L - p|)^2, d0 = |L| (distance to the
+        image centre at height 0), so that point gets power mu.
+    perspective : float, optional
+        Focal length f in pixels: the camera sits at (0, 0, f) and the view
+        vector of each pixel points from the surface point to it (used by the
+        specular term). The image grid itself stays orthographic (the
+        simplification of Section 5.2.2.2: depth variation << distance).
+        f must exceed the highest surface point. None: v = (0, 0, 1).
+    shadow_bias : float, default 0.05
+        ``bias`` passed to :func:`psbench.shadowmap.shadow_map` (pixel-height units;
+        the rendered heights are exact, so it is small).
+
+    Returns
+    -------
+    Scene
+        ``.images (k, H, W) float32``, ground truth ``.highlight .self_shadow
+        .cast_shadow (k, H, W) bool``, ``.sigma (k,)``, lazily computed
+        ``.diffuse .specular .clean``. Pixels outside ``surface.mask`` are 0.
+    """
+    model = choice(model, MODELS, "model")
+    if not (isinstance(shadows, (bool, np.bool_)) or shadows in ("all", "self")):
+        raise PsbenchError(f"shadows={shadows!r} is not known; valid choices: True, False, 'all', 'self'")
+    cast = bool(shadows) if isinstance(shadows, (bool, np.bool_)) else shadows == "all"
+    noise = _nonneg(noise, "noise")
+    m = _positive(m, "m")
+    phong_m = _positive(phong_m, "phong_m")
+    highlight_fraction = _nonneg(highlight_fraction, "highlight_fraction")
+    shadow_bias = _nonneg(shadow_bias, "shadow_bias")
+    if quantize is not None:
+        if isinstance(quantize, (bool, np.bool_)) or not isinstance(quantize, (int, np.integer)) \
+                or int(quantize) not in QUANTIZE_BITS:
+            raise PsbenchError(f"quantize={quantize!r}: expected None or a bit depth, an integer in 1..16")
+        quantize = int(quantize)
+    try:
+        seed = int(seed)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"seed must be an integer, got {seed!r}") from None
+
+    height, mask, normals = _surface(surface)
+    H, W = mask.shape
+    rho_d = _albedo(rho_d, "rho_d", (H, W))
+    rho_s = _albedo(rho_s, "rho_s", (H, W))
+    lay = _lights(lights)
+    k = lay.k
+
+    pos = light_positions if light_positions is not None else lay.positions
+    if pos is not None:
+        pos = np.asarray(pos, dtype=np.float64)
+        name = "light_positions" if light_positions is not None else "lights.positions"
+        if pos.shape != (k, 3):
+            raise PsbenchError(f"{name} must have shape ({k}, 3) to match {k} lights, got {pos.shape}")
+        if not np.isfinite(pos).all():
+            raise PsbenchError(f"{name} holds NaN/inf values")
+        if (pos[:, 2] <= 0).any():
+            raise PsbenchError(f"{name}: light(s) {np.flatnonzero(pos[:, 2] <= 0).tolist()} "
+                               "are not above the height datum (z must be > 0)")
+        d = pos / np.linalg.norm(pos, axis=1)[:, None]
+        zen = np.degrees(np.arccos(np.clip(d[:, 2], -1, 1)))
+        pol = np.degrees(np.arctan2(d[:, 1], d[:, 0])) % 360.0
+        lay = Layout(d, lay.power, lay.ring, zen, pol, lay.name, pos)
+    if falloff and pos is None:
+        raise PsbenchError("falloff=True needs near lights: pass light_positions (k, 3)")
+    if perspective is not None:
+        f = _positive(perspective, "perspective")
+        if f <= float(np.max(height, where=mask, initial=0.0)):
+            raise PsbenchError(f"perspective={f:g}: the camera (0, 0, f) must be above the surface "
+                               f"(highest point {float(height[mask].max()):g})")
+        perspective = f
+
+    shader = _Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
+                     pos, bool(falloff), perspective)
+    occluded = None
+    if cast:
+        occluded = shadow_map(height, lay.directions, bias=shadow_bias)
+
+    images = np.empty((k, H, W), dtype=np.float32)
+    highlight = np.zeros((k, H, W), dtype=bool)
+    self_sh = np.zeros((k, H, W), dtype=bool)
+    cast_sh = np.zeros((k, H, W), dtype=bool)
+    drange = np.zeros(k, dtype=np.float32)
+    sigma = np.zeros(k, dtype=np.float32)
+    rng = np.random.default_rng(seed)
+    full = bool(mask.all())
+    for i in range(k):
+        diff, spec, lit = shader.light(i)
+        np.logical_and(~lit, mask, out=self_sh[i])
+        if occluded is not None:
+            np.logical_and(occluded[i], lit, out=cast_sh[i])
+            cast_sh[i] &= mask
+        dark = ~lit | cast_sh[i] | ~mask
+        img = images[i]
+        if spec is None:
+            np.copyto(img, diff)
+        else:
+            np.add(diff, spec, out=img)
+        img[dark] = 0.0
+        hi = float(np.max(img, where=mask, initial=-np.inf))
+        lo = float(np.min(img, where=mask, initial=np.inf))
+        drange[i] = hi - lo if np.isfinite(hi) else 0.0
+        if spec is not None and highlight_fraction * drange[i] > 0:
+            np.greater(spec, np.float32(highlight_fraction * drange[i]), out=highlight[i])
+            highlight[i] &= ~dark
+        if noise > 0:
+            sigma[i] = np.float32(noise * drange[i])
+            z = rng.standard_normal((H, W), dtype=np.float32)
+            z *= sigma[i]
+            if not full:
+                z[~mask] = 0.0
+            img += z
+    if quantize is not None:
+        _quantize(images, mask, quantize)
+    return Scene(images, highlight, self_sh, cast_sh, surface, lay, model, float(noise), seed,
+                 sigma, drange, shadows, quantize, float(highlight_fraction), shader)
+
+
+def _quantize(images, mask, bits):
+    top = float(np.max(images, where=mask[None], initial=0.0))
+    if top <= 0:
+        images[...] = 0.0
+        return
+    levels = float(2 ** bits - 1)
+    scale = np.float32(levels / top)
+    for img in images:  # in place, light by light
+        np.clip(img, 0.0, top, out=img)
+        img *= scale
+        np.rint(img, out=img)
+        img *= np.float32(top / levels)
+
+
+class _Shader:
+    """Per-light shading of one surface; float32 (H, W) planes."""
+
+    def __init__(self, height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
+                 positions, falloff, perspective):
+        self.mask = mask
+        self.lay = lay
+        self.model = model
+        self.rho_d, self.rho_s = rho_d, rho_s
+        self.m, self.phong_m = np.float32(m), np.float32(phong_m)
+        self.positions = positions
+        self.falloff = falloff
+        self.perspective = perspective
+        self.nx = np.ascontiguousarray(normals[..., 0])
+        self.ny = np.ascontiguousarray(normals[..., 1])
+        self.nz = np.ascontiguousarray(normals[..., 2])
+        H, W = mask.shape
+        self.x = (np.arange(W, dtype=np.float32) - np.float32((W - 1) / 2))[None, :]
+        self.y = (np.float32((H - 1) / 2) - np.arange(H, dtype=np.float32))[:, None]
+        self.h = height
+        self.view = None
+        if perspective is not None:
+            vz = np.float32(perspective) - height
+            vx = np.broadcast_to(-self.x, (H, W))
+            vy = np.broadcast_to(-self.y, (H, W))
+            inv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
+            self.view = (vx * inv, vy * inv, vz * inv)
+
+    def light(self, i):
+        """Return (diffuse, specular or None, lit) for light i, shadows not applied
+        except that both terms are meaningless where ``lit`` is False."""
+        mu = np.float32(self.lay.power[i])
+        nx, ny, nz = self.nx, self.ny, self.nz
+        scale = None
+        if self.positions is None:
+            dx, dy, dz = (float(c) for c in self.lay.directions[i])
+        else:
+            L = self.positions[i]
+            dx = np.float32(L[0]) - self.x
+            dy = np.float32(L[1]) - self.y
+            dz = np.float32(L[2]) - self.h
+            dist2 = dx * dx + dy * dy + dz * dz
+            inv = 1.0 / np.sqrt(dist2)
+            dx, dy, dz = dx * inv, dy * inv, dz * inv
+            if self.falloff:
+                scale = np.float32(L @ L) / dist2
+        sn = nx * dx
+        sn += ny * dy
+        sn += nz * dz
+        sn = np.asarray(sn, dtype=np.float32)
+        lit = sn > 0
+        spec = None
+        if self.model != "lambert":
+            vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
+            if self.model == "ts":
+                hx, hy, hz = dx + vx, dy + vy, dz + vz
+                c = nx * hx
+                c += ny * hy
+                c += nz * hz
+                c /= np.sqrt(hx * hx + hy * hy + hz * hz)
+                np.clip(c, -1.0, 1.0, out=c)
+                a = np.arccos(c, out=c)
+                a *= self.m
+                np.square(a, out=a)
+                np.negative(a, out=a)
+                spec = np.exp(a, out=a)
+            else:  # phong: r.v = 2 (s.n)(n.v) - s.v
+                nv = nx * vx
+                nv += ny * vy
+                nv += nz * vz
+                rv = 2.0 * sn * nv
+                rv -= dx * vx + dy * vy + dz * vz
+                np.maximum(rv, 0.0, out=rv)
+                spec = np.power(rv, self.phong_m, out=rv)
+            spec *= mu
+            spec *= self.rho_s
+        diff = sn
+        diff *= mu
+        diff *= self.rho_d
+        if scale is not None:
+            diff *= scale
+            if spec is not None:
+                spec *= scale
+        return diff, spec, lit
+
+    def components(self, dark):
+        """Clean diffuse and specular stacks with ``dark`` (k, H, W) set to 0."""
+        k = self.lay.k
+        H, W = self.mask.shape
+        diff = np.empty((k, H, W), dtype=np.float32)
+        spec = np.zeros((k, H, W), dtype=np.float32)
+        for i in range(k):
+            d, s, lit = self.light(i)
+            off = dark[i] | ~lit | ~self.mask
+            diff[i] = d
+            diff[i][off] = 0.0
+            if s is not None:
+                spec[i] = s
+                spec[i][off] = 0.0
+        return diff, spec
+
+
+def _nonneg(value, name):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"{name} must be a number >= 0, got {value!r}") from None
+    if not np.isfinite(v) or v < 0:
+        raise PsbenchError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v
+
+
+def _positive(value, name):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"{name} must be a number > 0, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise PsbenchError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+def _albedo(value, name, shape):
+    a = np.asarray(value, dtype=np.float32)
+    if a.ndim == 0:
+        v = float(a)
+        if not np.isfinite(v) or v < 0:
+            raise PsbenchError(f"{name} must be >= 0, got {value!r}")
+        return np.float32(v)
+    if a.shape != shape:
+        raise PsbenchError(f"{name} must be a number or have shape {shape}, got {a.shape}")
+    if not np.isfinite(a).all() or (a < 0).any():
+        raise PsbenchError(f"{name} must be finite and >= 0 everywhere")
+    return a
+
+
+def _surface(surface):
+    missing = [f for f in ("height", "mask", "normals") if not hasattr(surface, f)]
+    if missing:
+        raise PsbenchError(
+            f"surface must have fields height, mask and normals (e.g. psbench.make_surface(...)); "
+            f"{type(surface).__name__} lacks {', '.join(missing)}")
+    height = np.asarray(surface.height)
+    if height.ndim != 2 or height.dtype == bool or not np.issubdtype(height.dtype, np.number):
+        raise PsbenchError(f"surface.height must be a numeric (H, W) array, got shape {height.shape}")
+    H, W = height.shape
+    mask = np.asarray(surface.mask)
+    if mask.shape != (H, W):
+        raise PsbenchError(f"surface.mask must have shape {(H, W)}, got {mask.shape}")
+    mask = mask.astype(bool, copy=False)
+    normals = np.asarray(surface.normals, dtype=np.float32)
+    if normals.shape != (H, W, 3):
+        raise PsbenchError(f"surface.normals must have shape {(H, W, 3)}, got {normals.shape}")
+    height = height.astype(np.float32, copy=False)
+    fin = np.isfinite(height)
+    if not fin[mask].all():
+        raise PsbenchError("surface.height holds NaN/inf inside surface.mask")
+    if not fin.all():
+        height = np.where(fin, height, np.float32(height[fin].min() if fin.any() else 0.0))
+    nfin = np.isfinite(normals).all(axis=2)
+    if not nfin[mask].all():
+        raise PsbenchError("surface.normals holds NaN/inf inside surface.mask")
+    if not nfin.all():
+        normals = np.where(nfin[..., None], normals, np.float32([0, 0, 1]))
+    return height, mask, normals
+
+
+def _lights(lights):
+    if isinstance(lights, Layout):
+        lay = lights
+    else:
+        arr = None if isinstance(lights, str) else np.asarray(lights, dtype=np.float64)
+        if arr is not None and arr.ndim == 2 and arr.shape[1] == 3 and arr.shape[0] < 3:
+            from .shadowmap import light_directions
+            d = light_directions(arr, "lights")  # fewer than 3 lights: render anyway
+            zen = np.degrees(np.arccos(np.clip(d[:, 2], -1, 1)))
+            pol = np.degrees(np.arctan2(d[:, 1], d[:, 0])) % 360.0
+            lay = Layout(d, np.ones(len(d)), np.zeros(len(d), dtype=int), zen, pol, "custom")
+        else:
+            lay = layout(lights)
+    below = np.flatnonzero(np.asarray(lay.directions)[:, 2] < -1e-12)
+    if below.size:
+        raise PsbenchError(f"lights: direction(s) {below.tolist()} point below the horizon (z < 0)")
+    return lay
