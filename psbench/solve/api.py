@@ -1,0 +1,587 @@
+"""Unified photometric stereo (Chapter 3): ``solve`` and its ``Result``.
+
+Flow (Fig. 3.1), as composable stages:
+
+1. **subsets** (step 3): subset masks xNL / RA (from :mod:`psbench.solve.subset`)
+   give per-observation validity; CJ gives the fused solution directly (k = 4).
+2. **image masks** (step 4): Th (Eq. 3.2), NL (Eqs. 3.3-3.6, k = 4).
+3. **PS <-> normal masks** (steps 5-6): solve, compute SS / Re / CS / Hi / Sh from the
+   normals, AND them with the image and subset masks, solve again, until the valid
+   masks stop changing or ``max_iter`` rounds. After the first round only pixels whose
+   mask changed are solved again (the local masks depend on the pixel's own normal
+   only; with Sh the masks are re-evaluated on every pixel each round).
+4. **fuse** (step 7) / weighting: the weighted-mask step (Eq. 3.19) or FWLSE.
+
+Before every PS solve Eq. 3.1's rule is applied: where fewer than three observations
+are valid the masked ones with the least residual of the *unmasked* least-squares
+solution are added back until three are used
+(:func:`psbench.solve.kernel.complete_three`). Every per-pixel solve goes through
+:func:`psbench.solve.kernel.wls`.
+
+Mask names are joined by '-' (whitespace also accepted); a combination is the logical
+AND of validity. See :mod:`psbench.solve.masks` for the per-mask decisions (Th offset
+and scopes, NL rule, Re/SS sign corrections) and :mod:`psbench.solve.thresholds` for
+Table 5.2 and its interpolation.
+
+Degenerate input: all-zero images give normals (0, 0, 1), albedo 0 and a
+RuntimeWarning; images with zero dynamic range (each image constant) make the
+range-based masks (Th, Hi, CS, NL) mask nothing (strict bounds) and warn -- such a
+stack is a plane under distant lights, which least squares solves exactly.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import PsbenchError, as_images, as_mask, as_normals, choice
+from . import kernel, masks as M
+from .thresholds import resolve_thresholds, t_re_array
+from .weighted import DEFAULTS as W_DEFAULTS, fwlse as _fwlse, weighted_masks
+
+__all__ = ["solve", "Result", "MASKS", "METHODS", "parse_mask", "OPTIONS"]
+
+#: valid mask tokens
+MASKS = ("None", "Th", "NL", "xNL", "SS", "Re", "CS", "Hi", "Sh", "CJ", "RA")
+#: valid methods
+METHODS = ("ps", "fwlse", "wps")
+IMAGE_MASKS = ("Th", "NL")
+NORMAL_MASKS = ("SS", "Re", "CS", "Hi", "Sh")
+SUBSET_MASKS = ("xNL", "RA", "CJ")
+
+#: extra keyword options of :func:`solve` and their defaults
+OPTIONS = dict(W_DEFAULTS, th_offset=True, sh_bias=None, integrate_method="poisson",
+               n_subsets=None)
+
+
+@dataclass(eq=False)
+class Result:
+    """Output of :func:`solve`.
+
+    Attributes
+    ----------
+    normals : (H, W, 3) float32
+        Unit normals; (0, 0, 1) where the albedo is 0 and outside ``object_mask``.
+    albedo : (H, W) float32
+        rho (times light power); 0 outside ``object_mask``.
+    valid : (k, H, W) bool
+        Binary mask actually used (True = observation used), after Eq. 3.1's
+        completion; all True outside ``object_mask``.
+    weights : (k, H, W) float32 or None
+        Final WLS weights (weighted masks / FWLSE), normalised so that 1 = sigma_min;
+        None for binary solves.
+    residual : (H, W) float32
+        L2 norm of i - rho s.n over the **used** observations (``valid``) of the
+        final solution; 0 outside ``object_mask``.
+    height : (H, W) float32 or None
+        Poisson-integrated heights when ``want_height=True``.
+    timings : dict
+        Stage -> seconds, including "total".
+    lights : Layout
+    mask : str
+        Canonical mask name ("Th-Hi-Re-Sh").
+    method : str
+    iterations : int
+        PS <-> normal-mask rounds (0 without normal masks) or FWLSE iterations.
+    thresholds : dict
+        Resolved threshold values actually used.
+    info : dict
+        Extras: ``th_scope``, ``converged``, ``changed`` (pixels changed per round),
+        ``ne`` (mean normal error per round when ``truth_normals`` was given), warnings.
+    """
+
+    normals: np.ndarray
+    albedo: np.ndarray
+    valid: np.ndarray
+    weights: np.ndarray | None
+    residual: np.ndarray
+    height: np.ndarray | None
+    timings: dict
+    lights: object
+    mask: str
+    method: str
+    iterations: int = 0
+    thresholds: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def b(self) -> np.ndarray:
+        """rho * n, (H, W, 3) float32."""
+        return self.normals * self.albedo[..., None]
+
+    def __repr__(self) -> str:
+        H, W = self.albedo.shape
+        return (f"Result(mask={self.mask!r}, method={self.method!r}, k={self.valid.shape[0]}, "
+                f"size={H}x{W}, iterations={self.iterations}, "
+                f"total={self.timings.get('total', float('nan')):.3f}s)")
+
+
+_CANON = {m.lower(): m for m in MASKS}
+
+
+def parse_mask(mask) -> tuple[str, ...]:
+    """Split a mask name into canonical tokens ('th-hi' -> ('Th', 'Hi')); () for None."""
+    if mask is None:
+        return ()
+    if isinstance(mask, (list, tuple)):
+        parts = [str(p) for p in mask]
+    elif isinstance(mask, str):
+        parts = mask.replace("-", " ").replace("+", " ").split()
+    else:
+        raise PsbenchError(f"mask must be a string like 'Th-Hi-Re-Sh', got {type(mask).__name__}")
+    out = []
+    for p in parts:
+        c = _CANON.get(p.strip().lower())
+        if c is None:
+            raise PsbenchError(
+                f"mask={mask!r}: unknown mask {p!r}; valid masks: {', '.join(MASKS)} "
+                "(combine with '-', e.g. 'Th-Hi-Re-Sh')")
+        if c != "None" and c not in out:
+            out.append(c)
+    if "CJ" in out and len(out) > 1:
+        raise PsbenchError(f"mask={mask!r}: CJ fuses its own triplet solutions and cannot be "
+                           "combined with other masks; use mask='CJ'")
+    return tuple(out)
+
+
+def _validate_lights(lights, k):
+    from ..lights import Layout, layout
+    try:
+        lay = lights if isinstance(lights, Layout) else layout(lights)
+    except PsbenchError:
+        raise
+    except Exception as exc:  # e.g. ragged lists
+        raise PsbenchError(f"lights must be a Layout, a (k, 3) array or ring notation like "
+                           f"'45x8'; got {lights!r:.80} ({exc})") from None
+    if lay.k != k:
+        raise PsbenchError(f"lights has {lay.k} lights ({lay.name}) but images holds {k} images; "
+                           "they must match one to one")
+    return lay
+
+
+def _check_opts(opts):
+    bad = [o for o in opts if o not in OPTIONS]
+    if bad:
+        raise PsbenchError(f"solve() got unknown option(s) {', '.join(map(repr, bad))}; valid "
+                           f"options: {', '.join(OPTIONS)}")
+    o = dict(OPTIONS)
+    o.update(opts)
+    for name in ("dilate_radius", "kernel_size"):
+        v = o[name]
+        if not isinstance(v, (int, np.integer)) or v < 0:
+            raise PsbenchError(f"{name} must be an integer >= 0, got {v!r}")
+    if o["kernel_size"] < 1 or o["kernel_size"] % 2 == 0:
+        raise PsbenchError(f"kernel_size must be odd and >= 1, got {o['kernel_size']!r}")
+    if not np.isscalar(o["smooth_sigma"]) or not o["smooth_sigma"] >= 0:
+        raise PsbenchError(f"smooth_sigma must be a number >= 0, got {o['smooth_sigma']!r}")
+    if o["sigma_min"] is not None and not (np.isscalar(o["sigma_min"]) and o["sigma_min"] > 0):
+        raise PsbenchError(f"sigma_min must be a number > 0 (or None), got {o['sigma_min']!r}")
+    if not (np.isscalar(o["fwlse_tol"]) and o["fwlse_tol"] > 0):
+        raise PsbenchError(f"fwlse_tol must be a number > 0, got {o['fwlse_tol']!r}")
+    o["integrate_method"] = choice(o["integrate_method"], ("poisson", "fc"), "integrate_method")
+    return o
+
+
+class _Timer:
+    def __init__(self):
+        self.t = {}
+        self._t0 = time.perf_counter()
+        self._last = self._t0
+
+    def lap(self, name):
+        now = time.perf_counter()
+        self.t[name] = self.t.get(name, 0.0) + (now - self._last)
+        self._last = now
+
+    def done(self):
+        self.t["total"] = time.perf_counter() - self._t0
+        return self.t
+
+
+def _ne(normals, truth, m):
+    d = np.clip(np.einsum("hwc,hwc->hw", normals, truth), -1.0, 1.0)
+    return float(np.degrees(np.arccos(d[m])).mean()) if m.any() else 0.0
+
+
+def solve(images, lights, *, mask="None", method="ps", weighted=False, object_mask=None,
+          thresholds=None, max_iter=10, seed=0, weight=None, binary=False, want_height=False,
+          truth_normals=None, th_scope="image", **opts) -> Result:
+    """Unified photometric stereo with masks (Chapter 3).
+
+    Parameters
+    ----------
+    images : (k, H, W) array_like
+        k >= 3 linear images; unsigned integers are converted to [0, 1]; NaN refused.
+    lights : Layout, (k, 3) array_like or str
+        Light layout (``"45x8"``); its count must match the images.
+    mask : str
+        Mask tokens joined by '-': None, Th, NL, xNL, SS, Re, CS, Hi, Sh, CJ, RA
+        (NL and CJ need k = 4).
+    method : {"ps", "fwlse", "wps"}
+        "ps": masked least squares; "fwlse": feasible WLS (Section 3.4.1) started
+        from the masked solution; "wps": delegated to :func:`psbench.solve.wps.wps`.
+    weighted : bool
+        Weighted masks (Section 3.4.2, Eq. 3.19) after the binary solve.
+    object_mask : (H, W) bool, optional
+        Pixels of the object (ranges of th_scope "object"/"robust"/"pixel", Sh
+        integration, outputs). Default: all pixels.
+    thresholds : dict, optional
+        Overrides of Table 5.2 (see :func:`psbench.solve.thresholds.resolve_thresholds`).
+    max_iter : int
+        Maximum PS <-> normal-mask rounds (and FWLSE iterations); >= 0.
+    seed : int
+        RANSAC seed.
+    weight, binary
+        Passed to "wps" only.
+    want_height : bool
+        Integrate the final normals (Poisson) into ``Result.height``.
+    truth_normals : (H, W, 3), optional
+        Only for diagnostics: records the mean normal error per round in ``info["ne"]``.
+    th_scope : {"image", "object", "robust", "pixel"}
+        How the dynamic ranges of Th / Hi / CS are measured (see
+        :mod:`psbench.solve.masks`). "image" is the thesis's rule.
+    **opts
+        ``dilate_radius`` (7), ``smooth_sigma`` (3), ``kernel_size`` (15),
+        ``sigma_min`` (None = 1 % of the mean dynamic range), ``fwlse_tol`` (1e-4),
+        ``th_offset`` (True: Th bounds offset by i_min), ``sh_bias`` (shadow-map bias,
+        None = shadowmap default), ``integrate_method`` ("poisson"), ``n_subsets`` (RA).
+
+    Returns
+    -------
+    Result
+    """
+    tm = _Timer()
+    images = as_images(images, "images", min_count=3)
+    k, H, W = images.shape
+    lay = _validate_lights(lights, k)
+    tokens = parse_mask(mask)
+    method = choice(method, METHODS, "method")
+    th_scope = choice(th_scope, M.SCOPES, "th_scope")
+    if not isinstance(max_iter, (int, np.integer)) or isinstance(max_iter, bool) or max_iter < 0:
+        raise PsbenchError(f"max_iter must be an integer >= 0, got {max_iter!r}")
+    for t in ("NL", "CJ"):
+        if t in tokens and k != 4:
+            raise PsbenchError(f"mask={mask!r}: {t} needs exactly 4 images, got {k}; use "
+                               f"{'xNL' if t == 'NL' else 'RA or xNL'} for other counts")
+    if "xNL" in tokens and k < 4:
+        raise PsbenchError(f"mask={mask!r}: xNL needs at least 4 images, got {k}")
+    omask = as_mask(object_mask, (H, W), "object_mask")
+    if not omask.any():
+        raise PsbenchError("object_mask selects no pixel")
+    full = bool(omask.all())
+    if truth_normals is not None:
+        truth_normals = as_normals(truth_normals, "truth_normals", (H, W))
+    o = _check_opts(opts)
+    thr = resolve_thresholds(k, lay, thresholds)
+    name = "-".join(tokens) if tokens else "None"
+
+    if method == "wps":
+        from .wps import wps  # owned by the wps module; imported lazily
+        return wps(images, lay, mask=mask, weighted=weighted, object_mask=object_mask,
+                   thresholds=thresholds, max_iter=max_iter, seed=seed, weight=weight,
+                   binary=binary, want_height=want_height, truth_normals=truth_normals,
+                   th_scope=th_scope, **opts)
+    tm.lap("validate")
+
+    info = {"th_scope": th_scope, "warnings": []}
+    S = lay.S.astype(np.float64)
+    S32 = S.astype(np.float32)
+    dirs = lay.directions
+    need_ranges = any(t in tokens for t in ("Th", "NL", "Hi", "CS")) or weighted or method == "fwlse"
+    rg = None
+    if need_ranges:
+        rg = M.ranges(images, scope=th_scope, object_mask=None if full else omask,
+                      offset=bool(o["th_offset"]))
+        if float(np.max(rg["rng_up"])) <= 0.0:
+            msg = ("images have zero dynamic range (every image constant); range-based masks "
+                   "mask nothing")
+            if not images.any():
+                msg = "all images are zero: normals (0, 0, 1), albedo 0"
+            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+            info["warnings"].append(msg)
+        tm.lap("ranges")
+    elif not images.any():
+        msg = "all images are zero: normals (0, 0, 1), albedo 0"
+        warnings.warn(msg, RuntimeWarning, stacklevel=2)
+        info["warnings"].append(msg)
+    scale = rg["scale"] if rg is not None else 1.0
+    sigma_min = o["sigma_min"] if o["sigma_min"] is not None else 0.01 * scale
+
+    # ---- fast path: plain least squares ------------------------------------------
+    if not tokens and method == "ps" and not weighted:
+        b = kernel.ls(images, S)
+        tm.lap("ps")
+        valid = np.ones((k, H, W), dtype=bool)
+        return _finish(images, S32, b, valid, None, omask, full, lay, name, method, 0, thr,
+                       info, tm, want_height, o, truth_normals)
+
+    # ---- subsets (step 3) and image masks (step 4) -----------------------------------
+    valid_img = None
+    b_fused = None
+    if "CJ" in tokens:
+        from .subset import cj
+        b_fused = np.asarray(cj(images, S, t_cj=thr["t_CJ"]), dtype=np.float32)
+        tm.lap("subsets")
+    if "xNL" in tokens:
+        from .subset import xnl
+        t_re_x = t_re_array(thr, k)
+        t_re_x = float(t_re_x.min())  # xnl takes one angle: the smallest (multi-ring)
+        valid_img = _and(valid_img, np.asarray(xnl(images, S, t_nl=thr["t_NL"], t_re=t_re_x), dtype=bool))
+        tm.lap("subsets")
+    if "RA" in tokens:
+        from .subset import ransac
+        valid_img = _and(valid_img, np.asarray(
+            ransac(images, S, threshold=thr["t_RA"], n_subsets=o["n_subsets"], seed=seed), dtype=bool))
+        tm.lap("subsets")
+    if "Th" in tokens:
+        valid_img = _and(valid_img, M.th(images, rg["lo"], rg["rng"], thr["k_low"], thr["k_up"],
+                                         lo_up=rg["lo_up"], rng_up=rg["rng_up"]))
+        tm.lap("image_masks")
+    if "NL" in tokens:
+        prefer = None
+        if "Re" in tokens:
+            b0 = kernel.ls(images, S)
+            n0, _ = kernel.split(b0)
+            prefer = ~M.re(n0, dirs, t_re_array(thr, k))
+        valid_img = _and(valid_img, M.nl(images, S, thr["t_NL"], scale=scale,
+                                         shadow_level=rg["lo"] + np.float32(thr["k_low"]) * rg["rng"],
+                                         prefer=prefer))
+        tm.lap("image_masks")
+    if valid_img is None:
+        valid_img = np.ones((k, H, W), dtype=bool)
+
+    # ---- PS <-> normal masks (steps 5-6) -----------------------------------------------
+    normal_tokens = [t for t in tokens if t in NORMAL_MASKS]
+    iterations = 0
+    changed_hist = []
+    ne_hist = []
+    if b_fused is not None:
+        b = b_fused
+        valid = _cj_valid(images, S32, b, scale)
+        tm.lap("fuse")
+    else:
+        valid = _complete(valid_img, images, S)
+        b = kernel.wls(images, S, valid) if not valid.all() else kernel.ls(images, S)
+        tm.lap("ps")
+        if truth_normals is not None:
+            ne_hist.append(_ne(kernel.split(b)[0], truth_normals, omask))
+        if normal_tokens and max_iter > 0:
+            b, valid, iterations, converged, changed_hist = _iterate(
+                images, S, S32, dirs, b, valid, valid_img, normal_tokens, thr, rg, omask,
+                full, max_iter, o, tm, truth_normals, ne_hist)
+            info["converged"] = converged
+
+    # ---- weighting (step 7) ------------------------------------------------------------
+    weights = None
+    if method == "fwlse":
+        b, weights, it_f, conv = _fwlse(images, S, b, None if valid.all() else valid,
+                                        sigma_min=sigma_min, tol=o["fwlse_tol"],
+                                        max_iter=max(1, max_iter), scale=scale)
+        info["fwlse_iterations"] = it_f
+        info["converged"] = conv
+        iterations = it_f if not normal_tokens else iterations
+        tm.lap("fwlse")
+    if weighted:
+        weights = weighted_masks(images, S, b, valid, sigma_min=sigma_min,
+                                 dilate_radius=o["dilate_radius"], smooth_sigma=o["smooth_sigma"],
+                                 kernel_size=o["kernel_size"], out=weights)
+        tm.lap("weights")
+        b = kernel.wls(images, S, weights)
+        tm.lap("weighted_ps")
+    info["changed"] = changed_hist
+    if truth_normals is not None:
+        ne_hist.append(_ne(kernel.split(b)[0], truth_normals, omask))
+        info["ne"] = ne_hist
+    return _finish(images, S32, b, valid, weights, omask, full, lay, name, method, iterations,
+                   thr, info, tm, want_height, o, truth_normals)
+
+
+def _and(a, b):
+    if a is None:
+        return b
+    a &= b
+    return a
+
+
+def _mean_range(images):
+    k = images.shape[0]
+    f = images.reshape(k, -1)
+    r = float((f.max(axis=1) - f.min(axis=1)).mean())
+    return r if r > 0 else 1.0
+
+
+def _complete(valid, images, S):
+    """Eq. 3.1 rule on (k, *P) validity: residuals of the unmasked LS solution are
+    computed only at the pixels that need completion."""
+    k = valid.shape[0]
+    count = valid.sum(axis=0, dtype=np.uint8)
+    short = count < 3
+    if not short.any():
+        return valid
+    vf = valid.reshape(k, -1)
+    sf = short.reshape(-1)
+    cols = np.flatnonzero(sf)
+    sub = images.reshape(k, -1)[:, cols]
+    P = np.linalg.pinv(S).astype(np.float32)
+    b0 = (P @ sub)
+    r = sub - np.asarray(S, dtype=np.float32) @ b0
+    v = kernel.complete_three(vf[:, cols][:, None, :], r[:, None, :])[:, 0, :]
+    out = valid.copy()
+    out.reshape(k, -1)[:, cols] = v
+    return out
+
+
+def _normal_valid(tokens, images, b, S32, dirs, thr, rg, t_re):
+    """Local normal masks (SS, Re, CS, Hi) on (k, *P) images with b (*P, 3)."""
+    v = None
+    if "SS" in tokens:
+        v = M.ss(b, S32)
+    if "Re" in tokens:
+        n, _ = kernel.split(b.reshape(1, -1, 3) if b.ndim == 2 else b)
+        v = _and(v, M.re(n.reshape(b.shape), dirs, t_re))
+    if "CS" in tokens or "Hi" in tokens:
+        r = M.residual_lambert(images, b, S32)
+        rng = rg["rng"]
+        if rng.shape[0] == 1 and rng.ndim == 3 and images.ndim == 2:
+            rng = rng.reshape(1, -1)
+        if "CS" in tokens:
+            v = _and(v, M.cs(images, b, S32, rng, thr["k_CS"], resid=r))
+        if "Hi" in tokens:
+            v = _and(v, M.hi(images, b, S32, rng, thr["k_Hi"], resid=r))
+    return v
+
+
+def _iterate(images, S, S32, dirs, b, valid, valid_img, tokens, thr, rg, omask, full,
+             max_iter, o, tm, truth, ne_hist):
+    k, H, W = images.shape
+    t_re = t_re_array(thr, k) if "Re" in tokens else None
+    local = [t for t in tokens if t != "Sh"]
+    use_sh = "Sh" in tokens
+    flat_img = images.reshape(k, -1)
+    flat_b = b.reshape(-1, 3)  # view into b
+    flat_valid = valid.reshape(k, -1) if valid is not valid_img else valid.copy().reshape(k, -1)
+    flat_vimg = valid_img.reshape(k, -1)
+    pixel_rng = rg is not None and rg["rng"].shape[0] == 1 and rg["rng"].size > 1
+    flat_rg = None
+    if rg is not None:
+        flat_rg = dict(rg)
+        if pixel_rng:
+            flat_rg["rng"] = rg["rng"].reshape(1, -1)
+        else:
+            flat_rg["rng"] = rg["rng"].reshape(k, 1)
+    active = None  # None = all pixels
+    changed_hist = []
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):
+        if use_sh:
+            n_full, _ = kernel.split(b)
+            vsh, _ = M.sh(n_full, b, S32, dirs, None if full else omask,
+                          bias=o["sh_bias"], method=o["integrate_method"])
+            tm.lap("sh")
+            cols = None
+            nv = vsh.reshape(k, -1)
+            if local:
+                nv &= _normal_valid(local, flat_img, flat_b, S32, dirs, thr, flat_rg, t_re)
+            new = nv
+            new &= flat_vimg
+        else:
+            cols = active
+            if cols is None:
+                nv = _normal_valid(local, flat_img, flat_b, S32, dirs, thr, flat_rg, t_re)
+                new = nv & flat_vimg
+            else:
+                sub_rg = flat_rg
+                if pixel_rng:
+                    sub_rg = dict(flat_rg, rng=flat_rg["rng"][:, cols])
+                nv = _normal_valid(local, flat_img[:, cols], flat_b[cols], S32, dirs, thr,
+                                   sub_rg, t_re)
+                new = nv & flat_vimg[:, cols]
+        tm.lap("normal_masks")
+        if cols is None:
+            new = _complete(new, flat_img, S)
+            diff = (new != flat_valid).any(axis=0)
+            idx = np.flatnonzero(diff)
+        else:
+            new = _complete(new, flat_img[:, cols], S)
+            diff = (new != flat_valid[:, cols]).any(axis=0)
+            idx = cols[diff]
+            new = new[:, diff]
+        changed_hist.append(int(idx.size))
+        if idx.size == 0:
+            converged = True
+            it -= 1
+            break
+        if cols is None:
+            flat_valid[:, idx] = new[:, idx]
+        else:
+            flat_valid[:, idx] = new
+        sub_v = flat_valid[:, idx]
+        flat_b[idx] = kernel.wls(flat_img[:, idx][:, None, :], S, sub_v[:, None, :]).reshape(-1, 3)
+        active = idx
+        tm.lap("ps_iter")
+        if truth is not None:
+            ne_hist.append(_ne(kernel.split(b)[0], truth, omask))
+    return b, flat_valid.reshape(k, H, W), it, converged, changed_hist
+
+
+def _cj_valid(images, S32, b, scale):
+    """Observations CJ used: where exactly three residuals vanish, the fourth was
+    excluded (the smallest-albedo triplet was chosen); otherwise all four."""
+    r = np.abs(M.residual_lambert(images, b, S32))
+    tol = np.float32(1e-4 * scale)
+    small = r <= tol
+    three = small.sum(axis=0) == 3
+    valid = np.ones_like(small)
+    valid[:, three] = small[:, three]
+    return valid
+
+
+def _finish(images, S32, b, valid, weights, omask, full, lay, name, method, iterations, thr,
+            info, tm, want_height, o, truth):
+    normals, albedo = kernel.split(b)
+    tm.lap("split")
+    k, H, W = images.shape
+    resid = _residual(images, b, S32, valid)
+    tm.lap("residual")
+    if not full:
+        out = ~omask
+        normals[out] = (0.0, 0.0, 1.0)
+        albedo[out] = 0.0
+        resid[out] = 0.0
+        if not valid[:, out].all():
+            valid[:, out] = True
+        if weights is not None:
+            weights[:, out] = 0.0
+    height = None
+    if want_height:
+        from ..integrate import integrate
+        height = np.asarray(integrate(normals, None if full else omask,
+                                      method=o["integrate_method"]), dtype=np.float32)
+        tm.lap("height")
+    return Result(normals=normals, albedo=albedo, valid=valid, weights=weights, residual=resid,
+                  height=height, timings=tm.done(), lights=lay, mask=name, method=method,
+                  iterations=int(iterations), thresholds=thr, info=info)
+
+
+def _residual(images, b, S32, valid):
+    """sqrt(sum_i valid_i (i - rho s_i.n)^2), (H, W) float32, chunked over pixels."""
+    k, H, W = images.shape
+    N = H * W
+    I2 = images.reshape(k, -1)
+    B = b.reshape(-1, 3)
+    V = valid.reshape(k, -1)
+    allv = bool(valid.all())
+    out = np.empty(N, dtype=np.float32)
+    step = 1 << 16
+    for lo in range(0, N, step):
+        hi = min(N, lo + step)
+        r = I2[:, lo:hi] - S32 @ B[lo:hi].T
+        r *= r
+        if not allv:
+            r *= V[:, lo:hi]
+        out[lo:hi] = r.sum(axis=0)
+    np.sqrt(out, out=out)
+    return out.reshape(H, W)
