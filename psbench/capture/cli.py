@@ -1,0 +1,136 @@
+"""``psbench-capture``: capture a PS image set with a rig (default: the simulated one).
+
+Arguments are ``key=value`` pairs (Hydra style, no dashes)::
+
+    psbench-capture rig=sim out=DIR surface=penny lights=30x4+60x4 size=128
+    psbench-capture rig=serial port=/dev/ttyUSB0 camera=0 out=DIR lights=30x8+60x8 current=350
+
+Keys
+----
+rig        ``sim`` (default) or ``serial``
+out        output folder (required; must not exist unless ``overwrite=true``)
+lights     nominal LED layout in ring notation (default ``30x4+60x4``); LED i of the
+           controller is light i of the layout (``leds=3,4,5`` to remap)
+current    LED current in mA (default 350)
+progress   ``true``/``false`` progress line on stderr (default true)
+overwrite  replace ``out`` if it exists (default false)
+
+serial rig: ``port`` (serial device), ``baud`` (115200), ``timeout`` (s, default 1),
+``camera`` (OpenCV device index, or a folder of frames to replay), ``exposure``
+(CAP_PROP_EXPOSURE value), ``target`` (free text stored in psbench.json, e.g. sphere).
+
+sim rig: ``surface`` (psbench surface name, default penny), ``size`` (128), ``seed``,
+``targets`` (``all`` = sphere,white,chart,grid (default), ``none``, or a comma list),
+``distance`` (LED distance in pixels), ``gamma``, ``vignette``, ``hot_pixels``,
+``model``, ``fault`` (silence|garbage|disconnect|error) and ``fault_after`` (commands).
+
+Exit status: 0 on success, 2 on bad arguments or capture errors, 130 on Ctrl-C.
+"""
+from __future__ import annotations
+
+import sys
+
+from .._checks import PsbenchError
+
+_SIM_KEYS = {"surface": str, "size": int, "seed": int, "distance": float, "gamma": float,
+             "vignette": float, "hot_pixels": int, "model": str, "exposure": float,
+             "power_spread": float, "read_noise": float}
+
+
+def _parse(argv):
+    args = {}
+    for a in argv:
+        if "=" not in a or a.startswith("-"):
+            if a in ("-h", "--help"):
+                print(__doc__)
+                raise SystemExit(0)
+            raise PsbenchError(f"argument {a!r}: expected key=value (see psbench-capture --help)")
+        k, v = a.split("=", 1)
+        args[k.strip()] = v.strip()
+    return args
+
+
+def _bool(v):
+    return str(v).lower() in ("1", "true", "yes", "on")
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = _parse(argv)
+        return _run(args)
+    except KeyboardInterrupt:
+        print("\npsbench-capture: interrupted; LEDs switched off, no output folder written",
+              file=sys.stderr)
+        return 130
+    except PsbenchError as e:
+        print(f"psbench-capture: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _run(args):
+    from ..lights import layout
+    from .controller import LedController
+    from .sequence import capture, capture_all
+
+    rig = args.pop("rig", "sim")
+    out = args.pop("out", None)
+    if not out:
+        raise PsbenchError("out=DIR is required")
+    lights = args.pop("lights", "30x4+60x4")
+    current = int(args.pop("current", 350))
+    progress = _bool(args.pop("progress", "true"))
+    overwrite = _bool(args.pop("overwrite", "false"))
+    if rig == "sim":
+        from .sim import RigConfig, SimController, SimRig
+        kw = {}
+        for k, typ in _SIM_KEYS.items():
+            if k in args:
+                kw[k] = typ(args.pop(k))
+        targets = args.pop("targets", "all")
+        fault = args.pop("fault", None)
+        after = int(args.pop("fault_after", 0))
+        timeout = float(args.pop("timeout", 1.0))
+        if args:
+            raise PsbenchError(f"unknown key(s) for rig=sim: {', '.join(args)}")
+        simrig = SimRig(RigConfig(lights=lights, current_mA=current, **kw))
+        tlist = () if targets == "none" else (("sphere", "white", "chart", "grid")
+                                              if targets == "all" else tuple(targets.split(",")))
+        with SimController(simrig.k, fault=fault, after=after) as dev:
+            with LedController(dev.port, timeout=timeout) as ctl:
+                path = capture_all(simrig, ctl, out, device=dev, progress=progress, overwrite=overwrite,
+                                   targets=tlist)
+        print(path)
+        return 0
+    if rig != "serial":
+        raise PsbenchError(f"rig={rig!r} is not known; valid choices: sim, serial")
+    from .camera import FolderCamera, OpenCVCamera
+    port = args.pop("port", None)
+    if not port:
+        raise PsbenchError("rig=serial needs port=/dev/ttyUSB0 (or COMn)")
+    cam_arg = args.pop("camera", "0")
+    exposure = args.pop("exposure", None)
+    baud = int(args.pop("baud", 115200))
+    timeout = float(args.pop("timeout", 1.0))
+    target = args.pop("target", "object")
+    leds = args.pop("leds", None)
+    if args:
+        raise PsbenchError(f"unknown key(s) for rig=serial: {', '.join(args)}")
+    cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
+        if cam_arg.isdigit() else FolderCamera(cam_arg)
+    lay = layout(lights)
+    led_idx = None if leds is None else [int(x) for x in leds.split(",")]
+    cam.open()
+    try:
+        with LedController(port, baudrate=baud, timeout=timeout) as ctl:
+            path = capture(ctl, cam, out, lay, current_mA=current, leds=led_idx,
+                           meta={"rig": "serial", "target": target, "exposure": exposure},
+                           progress=progress, overwrite=overwrite)
+    finally:
+        cam.close()
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
