@@ -1,0 +1,218 @@
+"""Tests for psbench.solve.wps (weighted multi-zenith PS, Section 4.3)."""
+import numpy as np
+import pytest
+
+from psbench._checks import PsbenchError
+from psbench.lights import layout
+from psbench.metrics import normal_error, normal_error_map
+from psbench.solve import kernel
+from psbench.solve.wps import WEIGHTS, sig, surface_factor, wps
+
+WEIGHTED = ("e", "eZsource", "eZsurface", "eZsourceZsurface")
+
+
+def _dome(H=40, slope=0.4):
+    """Normals of a smooth bump with surface zenith below 30 degrees everywhere."""
+    yy, xx = np.mgrid[-1:1:H * 1j, -1:1:H * 1j]
+    n = np.stack([xx * slope, -yy * slope * 0.7, np.ones_like(xx)], -1)
+    return (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def _scene(spec="30x8+60x8", H=40, slope=0.4, noise=0.0, seed=0, rho=0.8):
+    lay = layout(spec)
+    n = _dome(H, slope)
+    I = np.asarray(kernel.lambert((rho * n).astype(np.float32), lay.S), dtype=np.float32)
+    if noise:
+        rng = np.random.default_rng(seed)
+        I = I + rng.normal(0, noise, I.shape).astype(np.float32)
+    return I, lay, n
+
+
+@pytest.fixture(scope="module")
+def ts_scene():
+    """A small TS sombrero with highlights, shadows and 5 % noise."""
+    from psbench.render import render
+    from psbench.surfaces import make_surface
+    surf = make_surface("sombrero2", size=64)
+    lay = layout("30x8+60x8")
+    sc = render(surf, lay, model="ts", shadows=True, noise=0.05, seed=3)
+    return sc.images, lay, surf
+
+
+@pytest.mark.parametrize("weight", WEIGHTS)
+@pytest.mark.parametrize("binary", [False, True])
+def test_noiseless_lambert_exact(weight, binary):
+    I, lay, n = _scene()
+    assert I.min() > 0  # no shadows
+    r = wps(I, lay, weight=weight, binary=binary, truth_normals=n)
+    assert r.method == "wps"
+    assert normal_error(r.normals, n) < 0.01
+    assert np.allclose(r.albedo, 0.8, atol=1e-3)
+    assert r.weights.shape == (2,) + I.shape[1:]
+    assert r.ring_normals.shape == (2,) + I.shape[1:] + (3,)
+    assert r.ring_albedo.shape == r.ring_residual.shape == (2,) + I.shape[1:]
+    assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+
+
+@pytest.mark.parametrize("weight", WEIGHTS)
+def test_weights_sum_to_one_and_nonnegative(ts_scene, weight):
+    I, lay, surf = ts_scene
+    for binary in (False, True):
+        r = wps(I, lay, weight=weight, binary=binary, truth_normals=surf.normals)
+        assert (r.weights >= 0).all()
+        assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+        if binary:
+            assert set(np.unique(r.weights)) <= {0.0, 1.0} or weight == "None"
+
+
+def test_e_weights_match_eq_4_13(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="e")
+    e1, e2 = r.ring_residual.astype(np.float64)
+    w1 = e2 ** 2 / (e1 ** 2 + e2 ** 2)
+    assert np.allclose(r.weights[0], w1, atol=1e-4)
+    assert np.allclose(r.weights[1], 1 - w1, atol=1e-4)
+
+
+def test_ezsource_weights_match_eq_4_14(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="eZsource")
+    e1, e2 = r.ring_residual.astype(np.float64)
+    u1 = np.sin(np.radians(30)) * e2 ** 2
+    u2 = np.sin(np.radians(60)) * e1 ** 2
+    assert np.allclose(r.weights[0], u1 / (u1 + u2), atol=1e-4)
+
+
+def test_ezsourcezsurface_uses_sin_z2_and_mirrored_sigmoid(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="eZsourceZsurface")
+    e1, e2 = r.ring_residual.astype(np.float64)
+    z1 = np.degrees(np.arccos(np.clip(r.ring_normals[0][..., 2], -1, 1))) / 90
+    z2 = np.degrees(np.arccos(np.clip(r.ring_normals[1][..., 2], -1, 1))) / 90
+    s = lambda x: 1 / (1 + np.exp(-10 * (x - 0.5)))  # noqa: E731
+    u1 = np.sin(np.radians(30)) * s(z1) * e2 ** 2
+    u2 = np.sin(np.radians(60)) * s(1 - z2) * e1 ** 2
+    assert np.allclose(r.weights[0], u1 / (u1 + u2), atol=2e-3)
+
+
+def test_binary_picks_lower_residual_ring(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="e", binary=True)
+    low = np.argmin(r.ring_residual, axis=0)
+    assert np.array_equal(np.argmax(r.weights, axis=0), low)
+    # the fused normal is that ring's normal
+    pick = np.take_along_axis(r.ring_normals, low[None, ..., None], 0)[0]
+    assert np.allclose(pick, r.normals, atol=1e-5)
+
+
+def test_surface_factor_follows_fig_4_11():
+    z = np.array([0.0, 15, 30, 45, 60, 75, 90])
+    low = surface_factor(z, 0.0)
+    high = surface_factor(z, 1.0)
+    assert np.all(np.diff(low) > 0) and np.all(np.diff(high) < 0)
+    assert np.isclose(low[3], 0.5) and np.isclose(high[3], 0.5)
+    assert np.allclose(surface_factor(z, 0.5), 0.5)
+    assert np.isclose(sig(0.5), 0.5) and sig(1.0) > 0.99 and sig(0.0) < 0.01
+
+
+def test_ezsurface_favours_high_ring_on_smooth_and_low_ring_on_steep():
+    # equal noise on both rings, no highlights or shadows: the weight difference between
+    # smooth and steep pixels comes from the sigmoid
+    I, lay, n = _scene(H=64, slope=0.55, noise=0.01, seed=1)
+    r = wps(I, lay, weight="eZsurface")
+    zen = np.degrees(np.arccos(n[..., 2]))
+    smooth, steep = zen < 10, zen > 30
+    assert smooth.sum() > 20 and steep.sum() > 20
+    w_low = r.weights[0]
+    assert w_low[smooth].mean() < 0.2
+    assert w_low[steep].mean() > 5 * w_low[smooth].mean()
+
+
+def test_oracle_never_worse_than_any_weighting(ts_scene):
+    I, lay, surf = ts_scene
+    m = surf.mask
+    orc = wps(I, lay, weight="oracle", truth_normals=surf.normals)
+    e_or = normal_error_map(orc.normals, surf.normals)
+    for weight in WEIGHTED:
+        for binary in (False, True):
+            r = wps(I, lay, weight=weight, binary=binary)
+            e = normal_error_map(r.normals, surf.normals)
+            assert (e_or <= e + 1e-3).all(), (weight, binary)
+            assert normal_error(orc.normals, surf.normals, m) <= normal_error(r.normals, surf.normals, m)
+    for j in range(2):
+        assert (e_or <= normal_error_map(orc.ring_normals[j], surf.normals) + 1e-3).all()
+    orb = wps(I, lay, weight="oracle", binary=True, truth_normals=surf.normals)
+    best = np.minimum(*[normal_error_map(orc.ring_normals[j], surf.normals) for j in range(2)])
+    assert np.allclose(normal_error_map(orb.normals, surf.normals), best, atol=1e-3)
+
+
+def test_three_rings():
+    I, lay, n = _scene("30x4+45x4+60x4")
+    for weight in WEIGHTS:
+        r = wps(I, lay, weight=weight, truth_normals=n)
+        assert r.weights.shape == (3,) + I.shape[1:]
+        assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+        assert normal_error(r.normals, n) < 0.01
+    # R = 3, weight e: w_j ∝ 1/e_j^2
+    I, lay, n = _scene("30x4+45x4+60x4", noise=0.02)
+    r = wps(I, lay, weight="e")
+    inv = 1 / r.ring_residual.astype(np.float64) ** 2
+    assert np.allclose(r.weights, inv / inv.sum(0), atol=1e-4)
+
+
+def test_three_rings_oracle_never_worse():
+    from psbench.render import render
+    from psbench.surfaces import make_surface
+    surf = make_surface("sombrero3", size=48)
+    lay = layout("30x4+45x4+60x4")
+    sc = render(surf, lay, noise=0.05, seed=1)
+    orc = wps(sc.images, lay, weight="oracle", truth_normals=surf.normals)
+    e_or = normal_error_map(orc.normals, surf.normals)
+    for weight in WEIGHTED:
+        e = normal_error_map(wps(sc.images, lay, weight=weight).normals, surf.normals)
+        assert (e_or <= e + 1e-3).all()
+
+
+def test_none_is_plain_ps_over_all_images(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="None")
+    n_ps, _ = kernel.split(kernel.ls(I, lay.S))
+    assert np.allclose(r.normals, n_ps, atol=1e-5)
+    assert np.allclose(r.weights, 0.5)
+
+
+def test_errors():
+    I, lay, n = _scene()
+    with pytest.raises(PsbenchError, match="single ring"):
+        wps(I[:8], layout("45x8"))
+    with pytest.raises(PsbenchError, match="at least 3"):
+        I2, lay2, _ = _scene("30x2+60x8")
+        wps(I2, lay2)
+    with pytest.raises(PsbenchError, match="eZsourceZsurface"):
+        wps(I, lay, weight="bogus")
+    with pytest.raises(PsbenchError, match="truth_normals"):
+        wps(I, lay, weight="oracle")
+    with pytest.raises(PsbenchError):
+        wps(I[:15], lay)
+    with pytest.raises(PsbenchError):
+        wps(I, lay, object_mask=np.zeros((3, 3), bool))
+
+
+def test_object_mask_and_solve_delegation(ts_scene):
+    from psbench.solve import solve
+    I, lay, surf = ts_scene
+    r = solve(I, lay, method="wps", weight="eZsourceZsurface", object_mask=surf.mask)
+    assert r.method == "wps" and r.weights.shape[0] == 2
+    out = ~surf.mask
+    assert np.allclose(r.normals[out], (0, 0, 1)) and (r.albedo[out] == 0).all()
+    direct = wps(I, lay, object_mask=surf.mask)
+    assert np.allclose(direct.normals, r.normals)
+
+
+def test_masked_rings(ts_scene):
+    I, lay, surf = ts_scene
+    r = wps(I, lay, mask="Th", weight="e")
+    assert r.mask == "Th"
+    assert not r.valid.all()
+    assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+    assert np.isfinite(r.normals).all()
