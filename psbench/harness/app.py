@@ -1,0 +1,201 @@
+"""The ``psbench`` command (Hydra app).
+
+::
+
+    psbench                                    # default scene: one run, one printed row
+    psbench surface=semisphere lights=30x8+60x8 noise=0.1 mask=None
+    psbench -m mask=Th,xNL,RA zenith=30,45,60  # sweep (joblib launcher, parallel)
+    psbench data=path/to/folder mask=Th        # a DiLiGenT-layout folder
+    psbench +experiment=table5_3 scale=ci      # an experiment grid, in-process chunks
+
+Configs ship inside the package (``psbench.conf``). Rows go to
+``<results_dir>/runs/<sweep>/<run_id>.parquet`` (``results_dir`` defaults to
+``$PSBENCH_RESULTS`` or ``results`` in the current directory); Hydra's own output goes
+to ``<results_dir>/hydra/`` and nothing else is written to the current directory.
+A run already stored is skipped ("skipped (stored)") unless ``rerun=true``; stored
+failed runs are retried with ``retry_failed=true`` (single runs always retry them).
+Errors in the configuration (unknown surface, mask, ...) print one clean message and
+exit with code 2.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from .._checks import PsbenchError
+
+__all__ = ["main", "task"]
+
+_EXIT = {"code": 0}
+# top-level keys of conf/config.yaml: "+key=value" is accepted for these too
+_KEYS = ("kind", "surface", "size", "zenith", "count", "lights", "model", "shadows", "noise",
+         "quantize", "mask", "weighted", "method", "weight", "binary", "thresholds",
+         "th_scope", "seed", "data", "analysis", "args", "extras", "results_dir", "sweep",
+         "rerun", "retry_failed", "scale", "jobs", "launcher", "shards", "submitit")
+
+
+def _config_path() -> str:
+    """``pkg://psbench.conf`` when the package ships its configs, else the source tree's
+    ``conf/`` (an editable install made before the configs were packaged)."""
+    import importlib.util
+
+    try:
+        if importlib.util.find_spec("psbench.conf") is not None:
+            return "pkg://psbench.conf"
+    except (ImportError, ValueError):
+        pass
+    here = Path(__file__).resolve().parents[2] / "conf"
+    if (here / "config.yaml").is_file():
+        return str(here)
+    return "pkg://psbench.conf"
+
+
+def _fix_argv(argv):
+    """``+rerun=true`` -> ``++rerun=true`` for keys the config defines (Hydra refuses
+    ``+`` for existing keys); everything else is left to Hydra."""
+    out = []
+    for a in argv:
+        if a.startswith("+") and not a.startswith("++") and "=" in a:
+            key = a[1:].split("=", 1)[0].split(".", 1)[0]
+            if key in _KEYS:
+                a = "+" + a
+        out.append(a)
+    return out
+
+
+def _multirun() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    try:
+        return HydraConfig.get().mode == RunMode.MULTIRUN
+    except ValueError:
+        return False
+
+
+def _cwd() -> Path:
+    from hydra.core.hydra_config import HydraConfig
+
+    try:
+        return Path(HydraConfig.get().runtime.cwd)
+    except ValueError:
+        return Path.cwd()
+
+
+def _overridden(*keys) -> bool:
+    from hydra.core.hydra_config import HydraConfig
+
+    try:
+        over = HydraConfig.get().overrides.task
+    except ValueError:
+        return False
+    names = {o.lstrip("+~").split("=", 1)[0] for o in over}
+    return any(k in names for k in keys)
+
+
+def _base_params(cfg) -> dict:
+    from omegaconf import OmegaConf
+
+    from .run import PARAMS
+
+    c = OmegaConf.to_container(cfg, resolve=True)
+    base = {k: c.get(k) for k in PARAMS}
+    base["zenith"], base["count"] = c.get("zenith"), c.get("count")
+    if c.get("data") is not None and not _overridden("lights", "zenith", "count"):
+        base.pop("lights")           # a data folder uses all its lights by default
+        base.pop("zenith")
+        base.pop("count")
+    return base
+
+
+def _err(msg):
+    print(f"psbench: error: {msg}", file=sys.stderr, flush=True)
+
+
+def task(cfg):
+    """Hydra task: one run (or an experiment when ``experiment`` is set)."""
+    try:
+        return _task(cfg)
+    except PsbenchError as exc:
+        _err(exc)
+        _EXIT["code"] = 2
+        return None
+
+
+def _task(cfg):
+    from omegaconf import OmegaConf
+
+    from .run import execute, format_row, normalize, run_id, validate
+    from .store import read_run, stored_status, write_row
+
+    root = Path(str(cfg.results_dir)).expanduser()
+    if not root.is_absolute():
+        root = _cwd() / root
+    if cfg.get("experiment"):
+        return _experiment(cfg, root)
+    multi = _multirun()
+    params = normalize(_base_params(cfg), base_dir=_cwd())
+    validate(params)
+    sweep = str(cfg.sweep)
+    rid = run_id(params)
+    stored = stored_status(root, sweep).get(rid) if not cfg.rerun else None
+    skip = stored == "ok" or (multi and stored == "failed" and not cfg.retry_failed)
+    if skip:
+        row = read_run(root, sweep, rid)
+        line = format_row(row) if row is not None else rid
+        print(f"skipped (stored{', failed' if stored == 'failed' else ''}): {line}", flush=True)
+        return {"run_id": rid, "status": stored, "skipped": True}
+    full = OmegaConf.to_container(cfg, resolve=True)
+    full["results_dir"] = str(root)
+    row = execute(params, sweep=sweep, config={"params": params, "cfg": full})
+    exc = row.pop("_exc", None)
+    path = write_row(root, row)
+    print(f"{format_row(row)} | stored {path}", flush=True)
+    if row["status"] != "ok":
+        print(row.get("traceback") or "", file=sys.stderr, flush=True)
+        if not multi:
+            _EXIT["code"] = 2 if isinstance(exc, PsbenchError) else 1
+    return {"run_id": rid, "status": row["status"], "skipped": False}
+
+
+def _experiment(cfg, root):
+    from .grid import expand, experiment_spec
+    from .shards import execute_runs
+
+    exp = experiment_spec(cfg.experiment)
+    runs = expand(exp, str(cfg.scale), _base_params(cfg), base_dir=_cwd())
+    name = str(exp["name"])
+    print(f"experiment {name} (scale={cfg.scale}): {len(runs)} runs -> {root}/runs/{name}/",
+          file=sys.stderr, flush=True)
+    from omegaconf import OmegaConf
+
+    sub = OmegaConf.to_container(cfg.submitit, resolve=True) if cfg.get("submitit") else {}
+    out = execute_runs(runs, root=root, sweep=name, experiment=name, rerun=bool(cfg.rerun),
+                       retry_failed=bool(cfg.retry_failed), jobs=int(cfg.jobs),
+                       launcher=str(cfg.launcher), shards=int(cfg.shards), submitit=sub,
+                       label=name)
+    for r in out["results"] or []:
+        if r["status"] != "ok":
+            print(f"failed {r['run_id']}: {r['error']}", file=sys.stderr)
+    if out["failed"]:
+        _EXIT["code"] = 1
+    return {k: v for k, v in out.items() if k != "results"}
+
+
+def main(argv=None):
+    """Console entry point ``psbench``."""
+    import hydra
+
+    if argv is not None:
+        sys.argv = [sys.argv[0]] + list(argv)
+    sys.argv = [sys.argv[0]] + _fix_argv(sys.argv[1:])
+    _EXIT["code"] = 0
+    deco = hydra.main(version_base="1.3", config_path=_config_path(), config_name="config")
+    deco(task)()
+    if _EXIT["code"]:
+        sys.exit(_EXIT["code"])
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

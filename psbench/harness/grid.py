@@ -1,0 +1,122 @@
+"""Experiment grids: expand ``experiment:`` configs into run parameter dicts.
+
+Format (``conf/experiment/<name>.yaml``, ``# @package _global_``)::
+
+    experiment:
+      name: table5_3
+      description: "..."
+      grids:              # union of cartesian products; keys are run parameters
+        - {surface: [semisphere, spheres], lights: [45x8], mask: [None, Th], noise: [0.0, 0.1]}
+      fixed: {model: ts, shadows: true}
+      scales:
+        full: {size: 512, seed: [0]}
+        ci:   {size: 48, seed: [0]}
+
+For each grid entry the parameters are: base (the command line's run parameters)
+< ``fixed`` < the grid entry < ``scales[scale]``; then every list value expands
+(cartesian product). Values that must stay lists (``extras``) are lists of lists in
+the grid, or plain lists in ``fixed``/scale when given as ``[[...]]``. ``zenith`` and
+``count`` build ``lights = "<zenith>x<count>"`` unless ``lights`` is set by the
+experiment. Duplicate runs (same run_id) are kept once, in first-seen order.
+"""
+from __future__ import annotations
+
+import itertools
+
+from .._checks import PsbenchError
+from .run import PARAMS, normalize, run_id
+
+__all__ = ["expand", "experiment_spec"]
+
+_LIST_PARAMS = ("extras",)   # list-valued parameters: a flat list is ONE value
+_DICT_PARAMS = ("thresholds", "args")
+
+
+def experiment_spec(exp) -> dict:
+    """Validate the ``experiment`` mapping and return it as plain python."""
+    from .run import _plain
+
+    exp = _plain(exp)
+    if not isinstance(exp, dict):
+        raise PsbenchError(f"experiment must be a mapping with name/grids, got {exp!r}")
+    unknown = set(exp) - {"name", "description", "grids", "fixed", "scales", "kind"}
+    if unknown:
+        raise PsbenchError(f"experiment has unknown keys {sorted(unknown)}; valid: name, "
+                           f"description, grids, fixed, scales")
+    if not exp.get("name"):
+        raise PsbenchError("experiment needs a name")
+    grids = exp.get("grids") or [{}]
+    if isinstance(grids, dict):
+        grids = [grids]
+    if not isinstance(grids, list) or not all(isinstance(g, dict) for g in grids):
+        raise PsbenchError(f"experiment {exp['name']}: grids must be a list of mappings")
+    exp["grids"] = grids
+    exp["fixed"] = exp.get("fixed") or {}
+    exp["scales"] = exp.get("scales") or {}
+    return exp
+
+
+def _axis(key, value):
+    """The list of values one key takes."""
+    if key in _LIST_PARAMS:
+        if isinstance(value, list) and value and all(isinstance(v, list) for v in value):
+            return value
+        return [value]
+    if isinstance(value, list):
+        if not value:
+            raise PsbenchError(f"grid key {key!r} has an empty list of values")
+        return value
+    return [value]
+
+
+def expand(exp, scale="full", base=None, *, base_dir=None) -> list[dict]:
+    """Expand an experiment into normalized run parameter dicts.
+
+    Parameters
+    ----------
+    exp : mapping
+        The ``experiment`` config (see module docstring).
+    scale : str
+        Key of ``exp["scales"]`` (``full``, ``ci``, ...). A scale the experiment does
+        not define is an error listing the defined ones (unless it defines none).
+    base : dict, optional
+        Defaults for parameters the experiment does not set (the command line's).
+
+    Returns
+    -------
+    list of dict
+        Normalized parameters (:func:`psbench.harness.run.normalize`), unique by run_id.
+    """
+    exp = experiment_spec(exp)
+    scales = exp["scales"]
+    if scales and scale not in scales:
+        raise PsbenchError(f"experiment {exp['name']}: scale={scale!r} is not defined; valid "
+                           f"choices: {', '.join(scales)}")
+    over = scales.get(scale) or {}
+    base = dict(base or {})
+    out, seen = [], set()
+    valid = set(PARAMS) | {"zenith", "count"}
+    for g in exp["grids"]:
+        merged = {**exp["fixed"], **g, **over}
+        bad = sorted(set(merged) - valid)
+        if bad:
+            raise PsbenchError(f"experiment {exp['name']}: unknown run parameter(s) {bad}; "
+                               f"valid: {', '.join(sorted(valid))}")
+        keys = list(merged)
+        axes = [_axis(k, merged[k]) for k in keys]
+        for combo in itertools.product(*axes):
+            p = {k: v for k, v in base.items() if k in valid}
+            if ("zenith" in keys or "count" in keys) and "lights" not in keys:
+                p.pop("lights", None)
+            p.update(zip(keys, combo))
+            if "zenith" in p and p.get("lights") is None:
+                p.setdefault("count", 8)
+            else:
+                p.pop("zenith", None)
+                p.pop("count", None)
+            norm = normalize(p, base_dir=base_dir)
+            rid = run_id(norm)
+            if rid not in seen:
+                seen.add(rid)
+                out.append(norm)
+    return out

@@ -1,0 +1,189 @@
+"""Chunked and sharded execution of many runs (experiments).
+
+- :func:`plan` drops runs already stored (unless ``rerun``; failed ones are retried
+  with ``retry_failed``).
+- :func:`make_chunks` groups runs that share a scene (one render per chunk) and packs
+  small groups together.
+- :func:`execute_runs` runs chunks with joblib in this machine's cores
+  (``launcher="joblib"``) or submits shards with submitit (``submitit_local``,
+  ``submitit_slurm``, ``submitit_debug``); each shard runs its chunks in-process and
+  writes per-run files, so a killed or partial execution resumes where it stopped.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+from .._checks import PsbenchError
+from .progress import Progress
+from .run import run_chunk, run_id, scene_key
+from .store import default_root, stored_status
+
+__all__ = ["LAUNCHERS", "plan", "make_chunks", "split_shards", "run_shard", "execute_runs"]
+
+LAUNCHERS = ("joblib", "submitit_local", "submitit_slurm", "submitit_debug")
+
+
+def plan(runs, *, root, sweep, rerun=False, retry_failed=False):
+    """Split normalized runs into (todo, skipped) given what the store holds."""
+    if rerun:
+        return list(runs), []
+    stored = stored_status(root, sweep)
+    todo, skipped = [], []
+    for p in runs:
+        st = stored.get(run_id(p))
+        if st == "ok" or (st is not None and not retry_failed):
+            skipped.append(p)
+        else:
+            todo.append(p)
+    return todo, skipped
+
+
+def make_chunks(runs, *, workers=1, target=None):
+    """Group runs by scene (never split a group) and pack groups into chunks of about
+    ``target`` runs (default: total / (4 * workers), at least 1)."""
+    groups = {}
+    for p in runs:
+        groups.setdefault(scene_key(p), []).append(p)
+    if target is None:
+        target = max(1, math.ceil(len(runs) / (4 * max(1, workers))))
+    chunks, cur = [], []
+    for key in sorted(groups):
+        cur.extend(groups[key])
+        if len(cur) >= target:
+            chunks.append(cur)
+            cur = []
+    if cur:
+        chunks.append(cur)
+    return chunks
+
+
+def split_shards(chunks, shards):
+    """Distribute chunks over ``shards`` lists, balancing the number of runs."""
+    shards = max(1, int(shards))
+    out = [[] for _ in range(shards)]
+    load = [0] * shards
+    for c in sorted(chunks, key=len, reverse=True):
+        i = load.index(min(load))
+        out[i].append(c)
+        load[i] += len(c)
+    return [s for s in out if s]
+
+
+def run_shard(chunks, *, root, sweep, experiment=None):
+    """Run chunks one after the other in this process (a shard job's body)."""
+    out = []
+    for c in chunks:
+        out.extend(run_chunk(c, root=root, sweep=sweep, experiment=experiment))
+    return out
+
+
+def _n_workers(jobs):
+    n = os.cpu_count() or 1
+    jobs = int(jobs)
+    return n if jobs == -1 else max(1, n + 1 + jobs if jobs < 0 else jobs)
+
+
+def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
+    results = []
+    if _n_workers(jobs) == 1 or len(chunks) == 1:
+        for c in chunks:
+            res = run_chunk(c, root=root, sweep=sweep, experiment=experiment)
+            prog.update(len(res), sum(r["status"] != "ok" for r in res))
+            results.extend(res)
+        return results
+    from joblib import Parallel, delayed
+
+    par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
+    for res in par(delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment)
+                   for c in chunks):
+        prog.update(len(res), sum(r["status"] != "ok" for r in res))
+        results.extend(res)
+    return results
+
+
+def _executor(launcher, folder, params):
+    import submitit
+
+    if launcher == "submitit_local":
+        ex = submitit.LocalExecutor(folder=str(folder))
+    elif launcher == "submitit_debug":
+        ex = submitit.DebugExecutor(folder=str(folder))
+    else:
+        ex = submitit.AutoExecutor(folder=str(folder), cluster="slurm")
+    params = {k: v for k, v in dict(params or {}).items() if v is not None}
+    if launcher != "submitit_slurm":
+        params = {k: v for k, v in params.items() if k in ("timeout_min",)}
+    if params:
+        ex.update_parameters(**params)
+    return ex
+
+
+def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder, params, wait):
+    shard_lists = split_shards(chunks, shards)
+    ex = _executor(launcher, folder, params)
+    jobs = [ex.submit(run_shard, s, root=str(root), sweep=sweep, experiment=experiment)
+            for s in shard_lists]
+    ids = ", ".join(str(j.job_id) for j in jobs)
+    prog.stream.write(f"submitted {len(jobs)} shard job(s) with {launcher} ({ids}); logs in "
+                      f"{folder}\n")
+    if not wait:
+        return None
+    results, pending = [], list(jobs)
+    while pending:
+        for j in list(pending):
+            if j.done():
+                pending.remove(j)
+                try:
+                    res = j.result()
+                except Exception as exc:  # noqa: BLE001 - a lost shard is reported, not fatal
+                    prog.stream.write(f"shard job {j.job_id} failed: {type(exc).__name__}: "
+                                      f"{str(exc)[:500]}\n")
+                    continue
+                prog.update(len(res), sum(r["status"] != "ok" for r in res))
+                results.extend(res)
+        if pending:
+            time.sleep(0.5)
+    return results
+
+
+def execute_runs(runs, *, root, sweep, experiment=None, rerun=False, retry_failed=False,
+                 jobs=-1, launcher="joblib", shards=1, submitit=None, stream=None,
+                 label=None):
+    """Plan, chunk and execute runs; returns a summary dict.
+
+    Returns
+    -------
+    dict
+        ``total``, ``skipped``, ``ok``, ``failed`` counts and ``results`` (per-run dicts)
+        (``results`` is None when shard jobs were submitted without waiting).
+    """
+    if launcher not in LAUNCHERS:
+        raise PsbenchError(f"launcher={launcher!r} is not known; valid choices: {', '.join(LAUNCHERS)}")
+    root = default_root(root)
+    todo, skipped = plan(runs, root=root, sweep=sweep, rerun=rerun, retry_failed=retry_failed)
+    prog = Progress(len(todo), label=label or sweep, stream=stream, skipped=len(skipped))
+    if skipped:
+        prog.stream.write(f"{sweep}: {len(skipped)} of {len(runs)} runs skipped (stored)"
+                          f"{'' if retry_failed else '; retry_failed=true retries failed ones'}\n")
+    results = []
+    if todo:
+        if launcher == "joblib":
+            chunks = make_chunks(todo, workers=_n_workers(jobs))
+            results = _joblib(chunks, prog, jobs=jobs, root=root, sweep=sweep,
+                              experiment=experiment)
+        else:
+            sub = dict(submitit or {})
+            folder = Path(sub.pop("folder", None) or (root / "submitit")) / "%j"
+            wait = bool(sub.pop("wait", True))
+            chunks = make_chunks(todo, workers=max(1, int(shards)))
+            results = _submitit(chunks, prog, launcher=launcher, shards=shards, root=root,
+                                sweep=sweep, experiment=experiment, folder=folder,
+                                params=sub, wait=wait)
+    prog.close()
+    ok = None if results is None else sum(r["status"] == "ok" for r in results)
+    failed = None if results is None else sum(r["status"] != "ok" for r in results)
+    return dict(total=len(runs), skipped=len(skipped), todo=len(todo), ok=ok, failed=failed,
+                results=results)
