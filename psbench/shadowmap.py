@@ -75,7 +75,7 @@ def light_directions(directions, name="directions"):
     return d
 
 
-def shadow_map(height, directions, *, mask=None, bias=0.5, background=None):
+def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, oversample=2):
     """Cast-shadow maps of a height field for distant lights.
 
     Parameters
@@ -97,6 +97,10 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None):
     background : float, optional
         Height given to pixels outside ``mask``; default the lowest height inside
         the mask.
+    oversample : int, default 2
+        Samples per pixel across the light direction in the rotated grid (1..4).
+        2 resolves shadow edges of sharp occluders (steps, pillars) markedly better
+        than 1 at about 1.5x the time; along the light one sample per pixel suffices.
 
     Returns
     -------
@@ -118,6 +122,9 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None):
     bias = float(bias)
     if not np.isfinite(bias) or bias < 0:
         raise PsbenchError(f"bias must be a finite number >= 0 (pixel-height units), got {bias}")
+    if isinstance(oversample, (bool, np.bool_)) or not isinstance(oversample, (int, np.integer)) \
+            or not 1 <= int(oversample) <= 4:
+        raise PsbenchError(f"oversample must be an integer in 1..4, got {oversample!r}")
     h = h.astype(np.float32)
     finite = np.isfinite(h)
     inside = finite
@@ -138,7 +145,11 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None):
                 raise PsbenchError(f"background must be finite, got {background}")
         h = np.where(inside, h, np.float32(bg)).astype(np.float32)
     hmin, hmax = float(h.min()), float(h.max())
+    # real heights replicated for _PAD pixels, then a ring of "nothing" that
+    # BORDER_REPLICATE extends to infinity (cv2's BORDER_CONSTANT is unreliable for
+    # samples a hair outside the source)
     hpad = cv2.copyMakeBorder(h, _PAD, _PAD, _PAD, _PAD, cv2.BORDER_REPLICATE)
+    hpad = cv2.copyMakeBorder(hpad, 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=float(_FLOOR))
     hb = h + np.float32(bias)
     for i, (dx, dy, dz) in enumerate(d):
         rxy = float(np.hypot(dx, dy))
@@ -148,20 +159,25 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None):
         rise = hmax - hmin - bias
         if rise <= 0 or rise / t < 1e-3:
             continue  # no occluder can rise above the ray within reach of any point
-        out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t)
+        out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, sc=int(oversample))
     if mask is not None or not finite.all():
         out &= inside[None]
     return out
 
 
 def _fit(half, n):
-    """Smallest size >= 2 * half + 3 with the parity of n."""
+    """Smallest size >= 2 * half + 3 whose parity makes the grid centre land on
+    the same sub-grid as the source pixels (n: the matching source extent, already
+    multiplied by the oversampling factor)."""
     m = 2 * int(np.ceil(half)) + 3
-    return m + ((m - n) % 2)
+    return m + ((m - 1 - n) % 2)
 
 
-def _one(h, hb, hpad, ux, uy, t):
-    """Shadow map (H, W) bool for one light with horizontal unit (ux, uy), rise t."""
+def _one(h, hb, hpad, ux, uy, t, sc=1, sr=1):
+    """Shadow map (H, W) bool for one light with horizontal unit (ux, uy), rise t.
+
+    The rotated grid has ``sc`` samples per pixel across the light and ``sr`` along it.
+    """
     H, W = h.shape
     c0, r0 = (W - 1) / 2.0, (H - 1) / 2.0
     # rotated frame: column axis (1, 0) -> source (uy, ux); row axis (0, -1) -> (ux, -uy),
@@ -170,32 +186,33 @@ def _one(h, hb, hpad, ux, uy, t):
     hh = 0.5 * (abs(ux) * (W - 1) + abs(uy) * (H - 1))
     # grid sizes with the parity of the matching source axis, so that axis-aligned
     # lights sample the source exactly at its pixels (no half-pixel blur)
-    pw, ph = (W, H) if abs(uy) >= abs(ux) else (H, W)
-    W2 = _fit(hw, pw)
-    H2 = _fit(hh, ph)
+    pw, ph = (W - 1, H - 1) if abs(uy) >= abs(ux) else (H - 1, W - 1)
+    W2 = _fit(hw * sc, pw * sc)
+    H2 = _fit(hh * sr, ph * sr)
     c0r, r0r = (W2 - 1) / 2.0, (H2 - 1) / 2.0
     # dst (c', r') -> src (c, r) (+ padding offset)
-    A = np.array([[uy, -ux], [ux, uy]])
-    off = np.array([c0, r0]) - A @ np.array([c0r, r0r]) + _PAD
+    R = np.array([[uy, -ux], [ux, uy]])
+    A = R @ np.diag([1.0 / sc, 1.0 / sr])
+    off = np.array([c0, r0]) - A @ np.array([c0r, r0r]) + _PAD + 2
     fwd = np.hstack([A, off[:, None]])
     # precision: g = h + t * row can be large for near-vertical lights
-    big = t * H2 > 2e5
+    big = t * H2 / sr > 2e5
     dtype = np.float64 if big else np.float32
     src = hpad.astype(dtype) if big else hpad
     g = cv2.warpAffine(src, fwd, (W2, H2), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                       borderMode=cv2.BORDER_CONSTANT, borderValue=float(_FLOOR))
-    ramp = (t * np.arange(H2, dtype=np.float64)).astype(dtype)
+                       borderMode=cv2.BORDER_REPLICATE)
+    ramp = ((t / sr) * np.arange(H2, dtype=np.float64)).astype(dtype)
     g += ramp[:, None]
     np.maximum.accumulate(g, axis=0, out=g)
     # back: src (c, r) -> rotated (c', r'); r' - 1 so the horizon covers rows strictly
     # nearer the light than p (the accumulated max up to row r'-1).
-    B = A.T
+    B = np.diag([float(sc), float(sr)]) @ R.T
     boff = np.array([c0r, r0r]) - B @ np.array([c0, r0])
     back = np.hstack([B, (boff - np.array([0.0, 1.0]))[:, None]])
     horizon = cv2.warpAffine(g, back, (W, H), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                             borderMode=cv2.BORDER_CONSTANT, borderValue=float(_FLOOR))
-    # g(p) at the original pixels: h + t * r'(p), r' = -ux (c - c0) + uy (r - r0) + r0r
-    rowpart = (t * (uy * (np.arange(H) - r0) + r0r)).astype(dtype)
+                             borderMode=cv2.BORDER_REPLICATE)
+    # g(p) at the original pixels: h + t * r'(p) / sr, r'/sr = -ux (c - c0) + uy (r - r0) + r0r/sr
+    rowpart = (t * (uy * (np.arange(H) - r0) + r0r / sr)).astype(dtype)
     colpart = (t * (-ux * (np.arange(W) - c0))).astype(dtype)
     thr = hb.astype(dtype, copy=False) + rowpart[:, None]
     thr += colpart[None, :]
