@@ -116,18 +116,18 @@ def _run(args):
     leds = args.pop("leds", None)
     if args:
         raise PsbenchError(f"unknown key(s) for rig=serial: {', '.join(args)}")
-    cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
-        if cam_arg.isdigit() else FolderCamera(cam_arg)
     lay = layout(lights)
     led_idx = None if leds is None else [int(x) for x in leds.split(",")]
-    cam.open()
-    try:
-        with LedController(port, baudrate=baud, timeout=timeout) as ctl:
+    with LedController(port, baudrate=baud, timeout=timeout) as ctl:
+        cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
+            if cam_arg.isdigit() else FolderCamera(cam_arg)
+        cam.open()
+        try:
             path = capture(ctl, cam, out, lay, current_mA=current, leds=led_idx,
                            meta={"rig": "serial", "target": target, "exposure": exposure},
                            progress=progress, overwrite=overwrite)
-    finally:
-        cam.close()
+        finally:
+            cam.close()
     print(path)
     return 0
 

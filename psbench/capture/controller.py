@@ -17,6 +17,12 @@ import os
 from .._checks import PsbenchError
 from .protocol import ProtocolReplyError, parse_reply
 
+try:  # termios errors (e.g. tcdrain on a hung-up tty) are not OSErrors
+    import termios as _termios
+    _IO_ERRORS = (OSError, _termios.error)
+except ImportError:  # pragma: no cover - Windows
+    _IO_ERRORS = (OSError,)
+
 __all__ = ["CaptureError", "PortNotFound", "PortBusy", "DeviceTimeout", "ProtocolError",
            "Disconnected", "LedController"]
 
@@ -97,7 +103,7 @@ class LedController:
         except serial.SerialException as e:
             raise Disconnected(f"LED controller on {self.port_name!r} disconnected while "
                                f"waiting for the reply to {cmd!r} ({e})") from None
-        except OSError as e:
+        except _IO_ERRORS as e:
             raise Disconnected(f"LED controller on {self.port_name!r} disconnected ({e})") from None
         if not line.endswith(b"\n"):
             if len(line) >= self.max_line:
@@ -120,7 +126,7 @@ class LedController:
         try:
             self._ser.write((cmd + "\n").encode("ascii"))
             self._ser.flush()
-        except (serial.SerialException, OSError) as e:
+        except (serial.SerialException,) + _IO_ERRORS as e:
             raise Disconnected(f"LED controller on {self.port_name!r} disconnected: "
                                f"could not send {cmd!r} ({e})") from None
         line = self._readline(cmd)

@@ -10,7 +10,8 @@ kernel's tty layer, not a mock. Faults can be injected after ``after`` commands:
 - ``"garbage"``    the device executes commands and replies with garbage bytes
 - ``"disconnect"`` the device disappears (master closed: the host sees EIO/hang-up);
                    like a USB-powered controller losing power, its LEDs go dark
-- ``"error"``      the device replies ``ERR 5 internal fault`` (and does nothing)
+- ``"error"``      internal fault: the firmware shuts all LEDs off and replies
+                   ``ERR 5 internal fault`` to every command
 
 The controller records its LED currents (``.leds``), every command (``.log``) and
 whether it is still connected, so tests can check that a capture left the LEDs off.
@@ -201,6 +202,8 @@ class SimController:
             self._close_master()
             return None
         if faulty and self.fault == "error":
+            with self._lock:
+                self.leds[:] = 0  # protective shutdown on an internal fault
             return f"ERR {ERR_FAULT} {ERROR_TEXT[ERR_FAULT]}\n".encode()
         reply = self._execute(line)
         if faulty and self.fault == "silence":
