@@ -53,7 +53,7 @@ SUBSET_MASKS = ("xNL", "RA", "CJ")
 
 #: extra keyword options of :func:`solve` and their defaults
 OPTIONS = dict(W_DEFAULTS, th_offset=True, sh_bias=None, integrate_method="poisson",
-               n_subsets=None)
+               n_subsets=None, iter_tol=0.0)
 
 
 @dataclass(eq=False)
@@ -180,6 +180,8 @@ def _check_opts(opts):
         raise PsbenchError(f"sigma_min must be a number > 0 (or None), got {o['sigma_min']!r}")
     if not (np.isscalar(o["fwlse_tol"]) and o["fwlse_tol"] > 0):
         raise PsbenchError(f"fwlse_tol must be a number > 0, got {o['fwlse_tol']!r}")
+    if not (np.isscalar(o["iter_tol"]) and 0 <= o["iter_tol"] < 1):
+        raise PsbenchError(f"iter_tol must be a number in [0, 1), got {o['iter_tol']!r}")
     o["integrate_method"] = choice(o["integrate_method"], ("poisson", "fc"), "integrate_method")
     return o
 
@@ -244,9 +246,11 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         :mod:`psbench.solve.masks`). "image" is the thesis's rule.
     **opts
         ``dilate_radius`` (7), ``smooth_sigma`` (3), ``kernel_size`` (15),
-        ``sigma_min`` (None = 1 % of the mean dynamic range), ``fwlse_tol`` (1e-4),
+        ``sigma_min`` (None = 1 % of the mean dynamic range), ``fwlse_tol`` (1e-3),
         ``th_offset`` (True: Th bounds offset by i_min), ``sh_bias`` (shadow-map bias,
-        None = shadowmap default), ``integrate_method`` ("poisson"), ``n_subsets`` (RA).
+        None = shadowmap default), ``integrate_method`` ("poisson"), ``n_subsets`` (RA),
+        ``iter_tol`` (0: iterate until no mask changes; > 0: also stop after a round
+        that changed at most this fraction of the object pixels).
 
     Returns
     -------
@@ -336,8 +340,11 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
             ransac(images, S, threshold=thr["t_RA"], n_subsets=o["n_subsets"], seed=seed), dtype=bool))
         tm.lap("subsets")
     if "Th" in tokens:
-        valid_img = _and(valid_img, M.th(images, rg["lo"], rg["rng"], thr["k_low"], thr["k_up"],
-                                         lo_up=rg["lo_up"], rng_up=rg["rng_up"]))
+        vth = M.th(images, rg["lo"], rg["rng"], thr["k_low"], thr["k_up"],
+                   lo_up=rg["lo_up"], rng_up=rg["rng_up"])
+        if rg["dead"].any():
+            vth |= rg["dead"]
+        valid_img = _and(valid_img, vth)
         tm.lap("image_masks")
     if "NL" in tokens:
         prefer = None
@@ -362,7 +369,8 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         valid = _cj_valid(images, S32, b, scale)
         tm.lap("fuse")
     else:
-        valid = _complete(valid_img, images, S)
+        completer = _Completer(images, S)
+        valid = completer(valid_img.reshape(k, -1)).reshape(k, H, W)
         b = kernel.wls(images, S, valid) if not valid.all() else kernel.ls(images, S)
         tm.lap("ps")
         if truth_normals is not None:
@@ -370,7 +378,7 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         if normal_tokens and max_iter > 0:
             b, valid, iterations, converged, changed_hist = _iterate(
                 images, S, S32, dirs, b, valid, valid_img, normal_tokens, thr, rg, omask,
-                full, max_iter, o, tm, truth_normals, ne_hist)
+                full, max_iter, o, tm, truth_normals, ne_hist, completer)
             info["converged"] = converged
 
     # ---- weighting (step 7) ------------------------------------------------------------
@@ -412,25 +420,63 @@ def _mean_range(images):
     return r if r > 0 else 1.0
 
 
-def _complete(valid, images, S):
-    """Eq. 3.1 rule on (k, *P) validity: residuals of the unmasked LS solution are
-    computed only at the pixels that need completion."""
-    k = valid.shape[0]
-    count = valid.sum(axis=0, dtype=np.uint8)
-    short = count < 3
-    if not short.any():
+class _Completer:
+    """Eq. 3.1's rule with a per-pixel cache.
+
+    Where fewer than three observations are valid, the masked ones with the least
+    |residual| of the *unmasked* least-squares solution are added until three are
+    used -- exactly :func:`psbench.solve.kernel.complete_three` (tests check the
+    equivalence). The residual order of a pixel never changes during a solve, so it is
+    computed once, only for pixels that ever need completion, and reused in every
+    round.
+    """
+
+    def __init__(self, images, S):
+        k = images.shape[0]
+        self.k = k
+        self.flat = images.reshape(k, -1)
+        self.S = np.asarray(S, dtype=np.float64)
+        self.P = np.linalg.pinv(self.S).astype(np.float32)
+        self.S32 = self.S.astype(np.float32)
+        self.have = np.zeros(self.flat.shape[1], dtype=bool)
+        self.order = None
+
+    def _ensure(self, cols):
+        miss = cols[~self.have[cols]]
+        if miss.size == 0:
+            return
+        if self.order is None:
+            self.order = np.zeros((self.k, self.flat.shape[1]), dtype=np.uint8)
+        sub = self.flat[:, miss]
+        r = sub - self.S32 @ (self.P @ sub)
+        np.abs(r, out=r)
+        self.order[:, miss] = np.argsort(r, axis=0, kind="stable").astype(np.uint8)
+        self.have[miss] = True
+
+    def __call__(self, valid, cols=None):
+        """Complete ``valid`` (k, n) in place where short; ``cols`` maps its columns to
+        pixel indices (None: all pixels). Returns ``valid``."""
+        k = self.k
+        cnt = valid.sum(axis=0, dtype=np.uint8)
+        short = np.flatnonzero(cnt < 3)
+        if short.size == 0:
+            return valid
+        pix = short if cols is None else cols[short]
+        self._ensure(pix)
+        o = self.order[:, pix]
+        v = valid[:, short]
+        c = cnt[short]
+        ar = np.arange(short.size)
+        for j in range(k):
+            need = c < 3
+            if not need.any():
+                break
+            obs = o[j]
+            add = need & ~v[obs, ar]
+            v[obs[add], ar[add]] = True
+            c += add
+        valid[:, short] = v
         return valid
-    vf = valid.reshape(k, -1)
-    sf = short.reshape(-1)
-    cols = np.flatnonzero(sf)
-    sub = images.reshape(k, -1)[:, cols]
-    P = np.linalg.pinv(S).astype(np.float32)
-    b0 = (P @ sub)
-    r = sub - np.asarray(S, dtype=np.float32) @ b0
-    v = kernel.complete_three(vf[:, cols][:, None, :], r[:, None, :])[:, 0, :]
-    out = valid.copy()
-    out.reshape(k, -1)[:, cols] = v
-    return out
 
 
 def _normal_valid(tokens, images, b, S32, dirs, thr, rg, t_re):
@@ -446,66 +492,82 @@ def _normal_valid(tokens, images, b, S32, dirs, thr, rg, t_re):
         rng = rg["rng"]
         if rng.shape[0] == 1 and rng.ndim == 3 and images.ndim == 2:
             rng = rng.reshape(1, -1)
+        dead = rg["dead"].reshape((-1,) + (1,) * (images.ndim - 1)) if rg["dead"].any() else None
         if "CS" in tokens:
-            v = _and(v, M.cs(images, b, S32, rng, thr["k_CS"], resid=r))
+            v = _and(v, M.cs(images, b, S32, rng, thr["k_CS"], resid=r) if dead is None
+                     else M.cs(images, b, S32, rng, thr["k_CS"], resid=r) | dead)
         if "Hi" in tokens:
-            v = _and(v, M.hi(images, b, S32, rng, thr["k_Hi"], resid=r))
+            v = _and(v, M.hi(images, b, S32, rng, thr["k_Hi"], resid=r) if dead is None
+                     else M.hi(images, b, S32, rng, thr["k_Hi"], resid=r) | dead)
     return v
 
 
 def _iterate(images, S, S32, dirs, b, valid, valid_img, tokens, thr, rg, omask, full,
-             max_iter, o, tm, truth, ne_hist):
+             max_iter, o, tm, truth, ne_hist, completer):
+    """PS <-> normal masks until the valid masks stop changing (or repeat a state of
+    the previous round: a 2-cycle), or ``max_iter`` rounds.
+
+    Local masks (SS, Re, CS, Hi) depend only on the pixel's own solution, so after the
+    first round they are re-evaluated only where the solution changed; Sh is global
+    (integration + shadow maps) and is recomputed on the whole image every round.
+    """
     k, H, W = images.shape
     t_re = t_re_array(thr, k) if "Re" in tokens else None
     local = [t for t in tokens if t != "Sh"]
     use_sh = "Sh" in tokens
     flat_img = images.reshape(k, -1)
     flat_b = b.reshape(-1, 3)  # view into b
-    flat_valid = valid.reshape(k, -1) if valid is not valid_img else valid.copy().reshape(k, -1)
+    flat_valid = valid.reshape(k, -1)
+    if np.shares_memory(flat_valid, valid_img):
+        flat_valid = flat_valid.copy()
     flat_vimg = valid_img.reshape(k, -1)
     pixel_rng = rg is not None and rg["rng"].shape[0] == 1 and rg["rng"].size > 1
     flat_rg = None
     if rg is not None:
         flat_rg = dict(rg)
-        if pixel_rng:
-            flat_rg["rng"] = rg["rng"].reshape(1, -1)
-        else:
-            flat_rg["rng"] = rg["rng"].reshape(k, 1)
-    active = None  # None = all pixels
+        flat_rg["rng"] = rg["rng"].reshape(1, -1) if pixel_rng else rg["rng"].reshape(k, 1)
+    lv = None  # local-mask validity of every pixel (k, N), kept up to date
+    active = None  # pixels whose solution changed in the last round (None = all)
     changed_hist = []
     converged = False
+    seen = {_digest(flat_valid)}  # states already visited (cycle detection)
+    n_obj = int(omask.sum())
+    tol_pix = float(o["iter_tol"]) * n_obj
     it = 0
     for it in range(1, max_iter + 1):
+        if local:
+            if active is None:
+                lv = _normal_valid(local, flat_img, flat_b, S32, dirs, thr, flat_rg, t_re)
+            elif active.size:
+                sub_rg = flat_rg
+                if pixel_rng:
+                    sub_rg = dict(flat_rg, rng=flat_rg["rng"][:, active])
+                lv[:, active] = _normal_valid(local, flat_img[:, active], flat_b[active], S32,
+                                              dirs, thr, sub_rg, t_re)
         if use_sh:
+            tm.lap("normal_masks")
             n_full, _ = kernel.split(b)
             vsh, _ = M.sh(n_full, b, S32, dirs, None if full else omask,
                           bias=o["sh_bias"], method=o["integrate_method"])
             tm.lap("sh")
-            cols = None
-            nv = vsh.reshape(k, -1)
-            if local:
-                nv &= _normal_valid(local, flat_img, flat_b, S32, dirs, thr, flat_rg, t_re)
-            new = nv
+            new = vsh.reshape(k, -1)
+            if lv is not None:
+                new &= lv
             new &= flat_vimg
+            cols = None
+        elif active is None:
+            new = lv & flat_vimg
+            cols = None
         else:
             cols = active
-            if cols is None:
-                nv = _normal_valid(local, flat_img, flat_b, S32, dirs, thr, flat_rg, t_re)
-                new = nv & flat_vimg
-            else:
-                sub_rg = flat_rg
-                if pixel_rng:
-                    sub_rg = dict(flat_rg, rng=flat_rg["rng"][:, cols])
-                nv = _normal_valid(local, flat_img[:, cols], flat_b[cols], S32, dirs, thr,
-                                   sub_rg, t_re)
-                new = nv & flat_vimg[:, cols]
+            new = lv[:, cols] & flat_vimg[:, cols]
+        completer(new, cols)
         tm.lap("normal_masks")
         if cols is None:
-            new = _complete(new, flat_img, S)
             diff = (new != flat_valid).any(axis=0)
             idx = np.flatnonzero(diff)
+            new = new[:, idx]
         else:
-            new = _complete(new, flat_img[:, cols], S)
             diff = (new != flat_valid[:, cols]).any(axis=0)
             idx = cols[diff]
             new = new[:, diff]
@@ -514,17 +576,31 @@ def _iterate(images, S, S32, dirs, b, valid, valid_img, tokens, thr, rg, omask, 
             converged = True
             it -= 1
             break
-        if cols is None:
-            flat_valid[:, idx] = new[:, idx]
-        else:
-            flat_valid[:, idx] = new
-        sub_v = flat_valid[:, idx]
-        flat_b[idx] = kernel.wls(flat_img[:, idx][:, None, :], S, sub_v[:, None, :]).reshape(-1, 3)
+        old = flat_valid[:, idx].copy()
+        flat_valid[:, idx] = new
+        key = _digest(flat_valid)
+        if key in seen:
+            # the masks returned to a state of an earlier round: a cycle; keep the
+            # previous state and stop
+            flat_valid[:, idx] = old
+            converged = "cycle"
+            it -= 1
+            break
+        seen.add(key)
+        flat_b[idx] = kernel.wls(flat_img[:, idx][:, None, :], S, new[:, None, :]).reshape(-1, 3)
         active = idx
         tm.lap("ps_iter")
         if truth is not None:
             ne_hist.append(_ne(kernel.split(b)[0], truth, omask))
+        if idx.size <= tol_pix:
+            converged = "tol"
+            break
     return b, flat_valid.reshape(k, H, W), it, converged, changed_hist
+
+
+def _digest(valid):
+    import hashlib
+    return hashlib.blake2b(np.packbits(valid).tobytes(), digest_size=16).digest()
 
 
 def _cj_valid(images, S32, b, scale):

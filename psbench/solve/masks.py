@@ -72,7 +72,9 @@ def ranges(images, *, scope="image", object_mask=None, offset=True):
         ``lo`` (k, 1, 1) or (1, H, W): i_min used as offset for Th (0 if not offset),
         ``rng`` (k, 1, 1) or (1, H, W): range for the lower Th bound, Hi and CS,
         ``lo_up``, ``rng_up`` (k, 1, 1): offset and range for the upper Th bound,
-        ``scale`` float: mean image range (NL scaling, > 0).
+        ``scale`` float: mean image range (NL scaling, > 0),
+        ``dead`` (k, 1, 1) bool: images with zero range; Th, Hi and CS never mask
+        them (a constant image carries no range to be a fraction of).
     """
     k = images.shape[0]
     flat = images.reshape(k, -1)
@@ -99,6 +101,7 @@ def ranges(images, *, scope="image", object_mask=None, offset=True):
         out["lo"], out["rng"] = out["lo_up"], out["rng_up"]
     scale = float(rng_img.mean())
     out["scale"] = scale if scale > 0 else 1.0
+    out["dead"] = (rng_img <= 0).reshape(k, 1, 1)  # zero-range images: masks keep them
     return out
 
 
