@@ -216,3 +216,15 @@ def test_masked_rings(ts_scene):
     assert not r.valid.all()
     assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
     assert np.isfinite(r.normals).all()
+
+
+def test_residuals_match_explicit_computation(ts_scene):
+    I, lay, _ = ts_scene
+    r = wps(I, lay, weight="eZsourceZsurface")
+    S = lay.S
+    for j, idx in enumerate(lay.rings()):
+        b = r.ring_normals[j] * r.ring_albedo[j][..., None]
+        e = np.sqrt(((I[idx] - kernel.lambert(b, S[idx])) ** 2).mean(0))
+        assert np.allclose(r.ring_residual[j], e, rtol=1e-3, atol=1e-5)
+    res = np.sqrt(((I - kernel.lambert(r.normals * r.albedo[..., None], S)) ** 2).sum(0))
+    assert np.allclose(r.residual, res, rtol=1e-3, atol=1e-4)

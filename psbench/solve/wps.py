@@ -301,27 +301,6 @@ def fuse(ring_b, w):
     return out
 
 
-def _solve_rings_ls(I2, S, rings):
-    """One matmul for every ring's b and one for every ring's residual."""
-    k, N = I2.shape
-    R = len(rings)
-    P = np.zeros((3 * R, k))
-    Q = np.zeros((k, k))
-    for j, idx in enumerate(rings):
-        Pj = np.linalg.pinv(S[idx])
-        P[3 * j:3 * j + 3, idx] = Pj
-        Q[np.ix_(idx, idx)] = np.eye(idx.size) - S[idx] @ Pj
-    B = (P.astype(np.float32) @ I2).reshape(R, 3, N)
-    res = Q.astype(np.float32) @ I2
-    res *= res
-    e2 = np.empty((R, N), dtype=np.float32)
-    for j, idx in enumerate(rings):
-        sl = _as_slice(idx)
-        e2[j] = res[sl].sum(axis=0)
-        e2[j] *= np.float32(1.0 / idx.size)
-    return B, e2
-
-
 def _as_slice(idx):
     if idx.size and np.all(np.diff(idx) == 1):
         return slice(int(idx[0]), int(idx[-1]) + 1)
@@ -370,6 +349,14 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
         ``Result`` fields with ``method="wps"``, ``weights (rings, H, W)``,
         ``ring_normals (rings, H, W, 3)``, ``ring_albedo (rings, H, W)``,
         ``ring_residual (rings, H, W)`` (RMS e_j), ``timings``.
+
+    Notes
+    -----
+    Without a mask everything comes from one product ``I^T M``: M stacks the rings'
+    pseudo-inverses (b_j) and orthonormal bases U_j of null(S_j^T), so that
+    ``|I_j - S_j b_j| = |U_j^T I_j|`` exactly; the fused residual follows without
+    another pass over the images from Pythagoras,
+    ``|I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T S_j^T S_j (b_j - b)``.
     """
     t0 = time.perf_counter()
     tm = {}
@@ -420,70 +407,92 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
 
     # ---- ring solves (Eqs. 4.3-4.8) ----------------------------------------------------
     info = {"ring_zeniths": zen.tolist()}
+    iterations = 0
+    thr_used = {}
+    G = [S[idx].T @ S[idx] for idx in rings]  # S_j^T S_j
     if plain:
-        B, e2 = _solve_rings_ls(I2, S, rings)
-        valid = np.ones((k, H, W), dtype=bool)
-        iterations = 0
-        thr_used = {}
+        # one product gives every ring's b (pseudo-inverse rows) and the coordinates of
+        # its residual in an orthonormal basis of null(S_j^T) (exact |I_j - S_j b_j|)
+        dof = [idx.size - 3 for idx in rings]
+        M = np.zeros((k, 3 * R + sum(dof)))
+        col = 3 * R
+        for j, idx in enumerate(rings):
+            M[idx, 3 * j:3 * j + 3] = np.linalg.pinv(S[idx]).T
+            if dof[j]:
+                U = np.linalg.svd(S[idx], full_matrices=True)[0]
+                M[idx, col:col + dof[j]] = U[:, 3:]
+            col += dof[j]
+        Bn = I2.T @ M.astype(np.float32)  # (N, 3R + sum dof)
+        ring_b = [Bn[:, 3 * j:3 * j + 3] for j in range(R)]
+        e2 = np.zeros((R, N), dtype=np.float32)
+        col = 3 * R
+        for j, idx in enumerate(rings):
+            if dof[j]:
+                X = Bn[:, col:col + dof[j]]
+                np.einsum("ni,ni->n", X, X, out=e2[j])
+                e2[j] *= np.float32(1.0 / idx.size)
+            col += dof[j]
+        valid = None
     else:
         from .api import solve
-        B = np.empty((R, 3, N), dtype=np.float32)
+        Bn = np.empty((N, 3 * R), dtype=np.float32)
         e2 = np.empty((R, N), dtype=np.float32)
         valid = np.ones((k, H, W), dtype=bool)
-        iterations = 0
-        thr_used = {}
         ring_info = []
         for j, idx in enumerate(rings):
             rj = solve(images[idx], lay.subset(idx), mask=mask, weighted=weighted,
                        object_mask=object_mask, thresholds=thresholds, max_iter=max_iter,
                        seed=seed, truth_normals=truth, **opts)
             bj = rj.normals * rj.albedo[..., None]
-            B[j] = bj.reshape(N, 3).T
+            Bn[:, 3 * j:3 * j + 3] = bj.reshape(N, 3)
             vj = rj.valid
             valid[idx] = vj
-            Lj = kernel.lambert(bj, S[idx])
-            r2 = (images[idx] - Lj) ** 2
+            r2 = (images[idx] - kernel.lambert(bj, S[idx])) ** 2
             if rj.weights is not None:
                 wj = np.asarray(rj.weights, dtype=np.float32)
-                cnt = wj.sum(0)
-                e2[j] = ((r2 * wj).sum(0) / np.maximum(cnt, 1e-12)).reshape(N)
+                e2[j] = ((r2 * wj).sum(0) / np.maximum(wj.sum(0), 1e-12)).reshape(N)
             else:
-                cnt = vj.sum(0)
-                e2[j] = ((r2 * vj).sum(0) / np.maximum(cnt, 1)).reshape(N)
+                e2[j] = ((r2 * vj).sum(0) / np.maximum(vj.sum(0), 1)).reshape(N)
             iterations = max(iterations, rj.iterations)
             thr_used[f"ring{j}"] = rj.thresholds
             ring_info.append(rj.info)
+        ring_b = [Bn[:, 3 * j:3 * j + 3] for j in range(R)]
         info["rings"] = ring_info
+    rho = np.empty((R, N), dtype=np.float32)
+    for j in range(R):
+        np.sqrt(np.einsum("ni,ni->n", ring_b[j], ring_b[j]), out=rho[j])
     tm["rings"] = time.perf_counter() - t
     t = time.perf_counter()
 
     # ---- weights (Eqs. 4.10-4.16) -------------------------------------------------------
-    rho = np.sqrt((B * B).sum(axis=1))  # (R, N)
     if weight == "None":
         w = np.empty((R, N), dtype=np.float32)
         for j, idx in enumerate(rings):
             w[j] = idx.size / k
     elif weight == "oracle":
-        w = oracle_weights(B, truth.reshape(N, 3).T, binary=binary)
+        Bt = np.stack([b.T for b in ring_b])
+        w = oracle_weights(Bt, truth.reshape(N, 3).T, binary=binary)
     else:
         u = np.empty((R, N), dtype=np.float32)
         for j in range(R):
-            f = np.float32(1.0)
+            uj = u[j]
+            np.add(e2[j], _EPS, out=uj)
+            np.divide(np.float32(1.0), uj, out=uj)
             if weight in ("eZsource", "eZsourceZsurface"):
-                f = np.float32(np.sin(np.radians(zen[j])))
+                uj *= np.float32(np.sin(np.radians(zen[j])))
             if weight in ("eZsurface", "eZsourceZsurface"):
-                nz = B[j, 2] / np.maximum(rho[j], np.float32(1e-30))
+                nz = ring_b[j][:, 2] / np.maximum(rho[j], np.float32(1e-30))
                 np.clip(nz, -1.0, 1.0, out=nz)
-                zs = np.arccos(nz)
+                zs = np.arccos(nz, out=nz)
                 zs *= np.float32(180.0 / np.pi)
-                f = f * surface_factor(zs, rank[j], z_scale=z_scale)
-            u[j] = f / (e2[j] + _EPS)
+                uj *= surface_factor(zs, rank[j], z_scale=z_scale)
         if binary:
             pick = np.argmax(u, axis=0)
             w = np.zeros((R, N), dtype=np.float32)
             w[pick, np.arange(N)] = 1.0
         else:
-            w = u / u.sum(axis=0, keepdims=True)
+            w = u
+            w /= u.sum(axis=0)
     tm["weights"] = time.perf_counter() - t
     t = time.perf_counter()
 
@@ -497,26 +506,41 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
                        thresholds=thresholds, max_iter=max_iter, seed=seed, **opts)
             b = (r0.normals * r0.albedo[..., None]).reshape(N, 3)
             valid = r0.valid
-        normals, albedo = kernel.split(b.reshape(H, W, 3))
     else:
-        bf = fuse(B, w)  # (3, N)
-        normals, albedo = kernel.split(np.ascontiguousarray(bf.T).reshape(H, W, 3))
+        b = ring_b[0] * w[0][:, None]
+        for j in range(1, R):
+            b += ring_b[j] * w[j][:, None]
+    normals, albedo = kernel.split(b.reshape(H, W, 3))
     tm["fuse"] = time.perf_counter() - t
     t = time.perf_counter()
-    b_out = normals * albedo[..., None]
-    resid = _residual(I2, b_out.reshape(N, 3), S.astype(np.float32), None if valid.all() else valid)
-    resid = resid.reshape(H, W)
+
+    # ---- residual of the fused solution -----------------------------------------------
+    if plain:
+        # Pythagoras per ring: |I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T G_j (b_j - b)
+        bo = normals.reshape(N, 3) * albedo.reshape(N, 1)
+        r2 = np.zeros(N, dtype=np.float32)
+        for j, idx in enumerate(rings):
+            d = ring_b[j] - bo
+            r2 += np.einsum("ni,ni->n", d @ G[j].astype(np.float32), d)
+            r2 += e2[j] * np.float32(idx.size)
+        resid = np.sqrt(r2).reshape(H, W)
+        valid = np.ones((k, H, W), dtype=bool)
+    else:
+        b_out = normals * albedo[..., None]
+        resid = _residual(I2, b_out.reshape(N, 3), S.astype(np.float32),
+                          None if valid.all() else valid).reshape(H, W)
     tm["residual"] = time.perf_counter() - t
     t = time.perf_counter()
 
-    ring_normals = np.empty((R, H, W, 3), dtype=np.float32)
-    ring_albedo = rho.reshape(R, H, W).astype(np.float32, copy=False)
+    ring_normals = np.empty((R, N, 3), dtype=np.float32)
     for j in range(R):
-        rn = B[j] / np.maximum(rho[j], np.float32(1e-30))
+        np.multiply(ring_b[j], (np.float32(1.0) / np.maximum(rho[j], np.float32(1e-30)))[:, None],
+                    out=ring_normals[j])
         zero = rho[j] <= 1e-6
         if zero.any():
-            rn[:, zero] = np.array([[0.0], [0.0], [1.0]], dtype=np.float32)
-        ring_normals[j] = rn.T.reshape(H, W, 3)
+            ring_normals[j][zero] = (0.0, 0.0, 1.0)
+    ring_normals = ring_normals.reshape(R, H, W, 3)
+    ring_albedo = rho.reshape(R, H, W)
     ring_residual = np.sqrt(e2).reshape(R, H, W)
     weights = w.reshape(R, H, W)
     if not full:
