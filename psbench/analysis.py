@@ -1,0 +1,412 @@
+"""Chapter 4 / Section 5.7 analyses as tidy pandas DataFrames (no plotting, no file I/O).
+
+Every function renders synthetic scenes (:func:`psbench.render.render`), solves them
+and measures errors; all are seeded and take a ``size`` so tests and CI can run them
+small. Plots are made elsewhere from the returned frames.
+
+Image kinds used throughout (thesis Figs. 4.3, 4.4, 4.7):
+
+* ``"Di"`` (diffuse): ``model="lambert", shadows=False`` -- no highlights and no cast
+  shadows. Self-shadowed points (s . n <= 0) are still 0 because light cannot be
+  negative; with the thesis's sombreros and zeniths above 90 - max surface zenith a
+  few observations are therefore still attached shadows.
+* ``"Hi-Sh"``: ``model="ts", shadows=True`` (Torrance-Sparrow highlights, self and cast
+  shadows), the thesis's Table 5.1 parameters (rho_d = rho_s = 1, m = 2).
+
+Noise is Gaussian with sigma = ``noise`` x each image's dynamic range (5 % default).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import PsbenchError, choice
+
+__all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
+           "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
+           "KINDS", "THESIS_TABLE_5_5", "THESIS_TABLE_5_6"]
+
+#: image kinds -> render options
+KINDS = {"Di": dict(model="lambert", shadows=False), "Hi-Sh": dict(model="ts", shadows=True)}
+
+#: thesis Table 5.5: mean NE (deg) of the three sombreros, rows (source, weight), columns n_i
+THESIS_TABLE_5_5 = {
+    ("1Z", "None"): (9.65, 9.42, 9.34, 9.27, 9.25),
+    ("2Z", "None"): (9.05, 8.41, 8.13, 7.91, 7.78),
+    ("2Z", "e"): (8.44, 7.84, 7.89, 8.05, 8.08),
+    ("2Z", "eZsource"): (7.92, 7.14, 7.11, 7.25, 7.26),
+    ("2Z", "eZsurface"): (7.00, 6.25, 6.17, 6.26, 6.22),
+    ("2Z", "eZsourceZsurface"): (6.60, 5.77, 5.64, 5.73, 5.68),
+}
+#: thesis Table 5.6: NE (deg) of eZsourceZsurface WPS with 16 images, weighted / binary
+THESIS_TABLE_5_6 = {
+    "Weighted": {"sombrero1": 4.08, "sombrero2": 6.12, "sombrero3": 6.74, "Mean": 5.65},
+    "Binary": {"sombrero1": 3.39, "sombrero2": 5.19, "sombrero3": 7.00, "Mean": 5.19},
+}
+_COUNTS_5_5 = (8, 12, 16, 24, 32)
+
+
+# ----------------------------------------------------------------------------- helpers
+def _surface(surface, size):
+    from .surfaces import make_surface
+    if isinstance(surface, str):
+        return make_surface(surface, size=size)
+    if all(hasattr(surface, a) for a in ("height", "mask", "normals")):
+        return surface
+    raise PsbenchError(f"surface must be a surface name or a Surface, got {type(surface).__name__}")
+
+
+def _sname(surf, given):
+    return given if isinstance(given, str) else getattr(surf, "name", "custom")
+
+
+def _seq(x):
+    if isinstance(x, (str, bytes)) or np.isscalar(x):
+        return [x]
+    return list(x)
+
+
+def _render(surf, lights, kind, noise, seed, **kw):
+    from .render import render
+    opts = dict(KINDS[choice(kind, tuple(KINDS), "kind")])
+    opts.update(kw)
+    return render(surf, lights, noise=noise, seed=seed, **opts)
+
+
+def _ne(normals, surf):
+    from .metrics import normal_error
+    return float(normal_error(normals, surf.normals, surf.mask))
+
+
+def _ps(images, lights, mask="None", **kw):
+    from .solve.api import solve
+    return solve(images, lights, mask=mask, **kw)
+
+
+def _ring(zenith, count):
+    return f"{zenith:g}x{int(count)}"
+
+
+def _surface_zenith(surf):
+    n = np.asarray(surf.normals, dtype=np.float64)
+    return np.degrees(np.arccos(np.clip(n[..., 2] / np.linalg.norm(n, axis=-1), -1, 1)))
+
+
+def _edges(bins):
+    if bins is None:
+        return np.linspace(0.0, 90.0, 19)
+    if np.isscalar(bins):
+        return np.linspace(0.0, 90.0, int(bins) + 1)
+    e = np.asarray(bins, dtype=float)
+    if e.ndim != 1 or e.size < 2 or np.any(np.diff(e) <= 0):
+        raise PsbenchError(f"bins must be an int or increasing edges, got {bins!r}")
+    return e
+
+
+# ----------------------------------------------------------------------------- Fig. 4.9
+def ne_vs_surface_zenith(surface="sombrero2", lights=("30x8", "45x8", "60x8"), *, size=128,
+                         kind="Hi-Sh", noise=0.05, seed=0, mask="None", bins=None):
+    """Mean NE versus true surface zenith for one or more layouts (Fig. 4.9).
+
+    Parameters
+    ----------
+    surface : str or Surface
+    lights : str, Layout or sequence of them
+        One curve per layout (default: single rings at 30, 45, 60 degrees, 8 lights).
+    size : int
+    kind : {"Hi-Sh", "Di"}
+    noise : float
+    seed : int
+    mask : str
+        Mask of the PS solve (default plain PS).
+    bins : int or edges (degrees), optional
+        Default 5-degree bins over [0, 90].
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``surface, lights, source_zenith`` (mean light zenith), ``zenith``
+        (bin centre), ``lo, hi, ne`` (mean NE in the bin, deg), ``count`` (pixels).
+    """
+    import pandas as pd
+    from .lights import layout
+    from .metrics import ne_by_zenith
+
+    surf = _surface(surface, size)
+    frames = []
+    for spec in _seq(lights):
+        lay = layout(spec)
+        sc = _render(surf, lay, kind, noise, seed)
+        res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
+        df = ne_by_zenith(res.normals, surf.normals, surf.mask, bins=_edges(bins))
+        df.insert(0, "source_zenith", float(np.mean(lay.zenith)))
+        df.insert(0, "lights", lay.name)
+        df.insert(0, "surface", _sname(surf, surface))
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True)
+
+
+# ----------------------------------------------------------------------------- Figs. 4.6, 4.10
+def ie_decomposition(surface="sombrero2", zeniths=(20, 30, 40, 45, 50, 60, 70, 80), *,
+                     count=8, size=128, by="source", bins=None, rho_s=1.0, m=2.0, seed=0):
+    """Intensity error of TS images split into highlight, self-shadow and cast-shadow
+    parts (Eq. 4.1), versus source zenith (Fig. 4.6) or surface zenith (Fig. 4.10).
+
+    The error of an observation is its deviation from the *linear* Lambert model of
+    the true normal, ``E = I - rho_d s . n`` (noise-free). It splits into disjoint parts:
+
+    * ``highlight``: the specular term (lit, unshadowed observations; Eq. 4.1 line 1),
+    * ``self_shadow``: ``-rho_d s . n`` where ``s . n < 0`` (Eq. 4.1 line 2),
+    * ``cast_shadow``: ``rho_d s . n`` lost where the point is occluded (omitted in
+      Eq. 4.1, reported here),
+
+    and ``total`` = mean |E| = the sum of the parts' mean absolute values (L1 over
+    observations, so the parts add up).
+
+    Parameters
+    ----------
+    surface : str or Surface
+    zeniths : sequence of float
+        Source zeniths (degrees), one ring of ``count`` lights each.
+    count : int
+    size : int
+    by : {"source", "surface"}
+        "source": one value per zenith and part, averaged over the object's pixels and
+        the images. "surface": additionally binned by the true surface zenith.
+    bins : int or edges, optional
+        Surface-zenith bins for ``by="surface"`` (default 5 degrees).
+    rho_s, m : float
+        TS specular albedo and roughness (Table 5.1: 1 and 2).
+    seed : int
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``surface, source_zenith, [zenith, lo, hi, pixels,] part, ie, ie_rel``
+        with ``ie`` the mean absolute error in intensity units and ``ie_rel`` in percent
+        of the mean image dynamic range (of the rendered images over the object).
+    """
+    import pandas as pd
+    from .lights import layout
+    from .render import render
+    from .solve import kernel
+
+    by = choice(by, ("source", "surface"), "by")
+    surf = _surface(surface, size)
+    mask = np.asarray(surf.mask, dtype=bool)
+    zs = _surface_zenith(surf)[mask]
+    edges = _edges(bins)
+    rows = []
+    for z in _seq(zeniths):
+        lay = layout(_ring(z, count))
+        sc = render(surf, lay, model="ts", shadows=True, noise=0.0, seed=seed, rho_s=rho_s, m=m)
+        lin = np.asarray(kernel.lambert(np.asarray(surf.normals, np.float32), lay.S))
+        spec = np.asarray(sc.specular)
+        ss = np.asarray(sc.self_shadow)
+        cs = np.asarray(sc.cast_shadow) & ~ss
+        parts = {
+            "highlight": np.abs(spec)[:, mask],
+            "self_shadow": np.where(ss, np.abs(lin), 0.0)[:, mask],
+            "cast_shadow": np.where(cs, np.abs(lin), 0.0)[:, mask],
+        }
+        parts["total"] = parts["highlight"] + parts["self_shadow"] + parts["cast_shadow"]
+        dr = float(np.mean(sc.dynamic_range))
+        if by == "source":
+            for name, v in parts.items():
+                ie = float(v.mean())
+                rows.append(dict(surface=_sname(surf, surface), source_zenith=float(z), part=name,
+                                 ie=ie, ie_rel=100.0 * ie / dr if dr > 0 else np.nan))
+        else:
+            idx = np.searchsorted(edges, zs, side="right") - 1
+            idx[zs == edges[-1]] = edges.size - 2
+            ok = (idx >= 0) & (idx < edges.size - 1)
+            nb = edges.size - 1
+            cnt = np.bincount(idx[ok], minlength=nb)
+            for name, v in parts.items():
+                per_pixel = v.mean(axis=0)
+                tot = np.bincount(idx[ok], weights=per_pixel[ok], minlength=nb)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    mean = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)
+                for b in range(nb):
+                    rows.append(dict(surface=_sname(surf, surface), source_zenith=float(z),
+                                     zenith=0.5 * (edges[b] + edges[b + 1]), lo=edges[b],
+                                     hi=edges[b + 1], pixels=int(cnt[b]), part=name,
+                                     ie=float(mean[b]),
+                                     ie_rel=100.0 * float(mean[b]) / dr if dr > 0 else np.nan))
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Fig. 4.3
+def ne_vs_image_count(surface="sombrero2", counts=(4, 6, 8, 12, 16, 24, 32), *, zenith=45,
+                      kinds=("Di", "Hi-Sh"), size=128, noise=0.05, seed=0, mask="None"):
+    """NE versus image count n_i for one source zenith (Fig. 4.3).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``surface, kind, zenith, count, lights, ne``.
+    """
+    import pandas as pd
+    from .lights import layout
+
+    surf = _surface(surface, size)
+    rows = []
+    for kind in _seq(kinds):
+        for n in _seq(counts):
+            lay = layout(_ring(zenith, n))
+            sc = _render(surf, lay, kind, noise, seed)
+            res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
+            rows.append(dict(surface=_sname(surf, surface), kind=kind, zenith=float(zenith),
+                             count=int(n), lights=lay.name, ne=_ne(res.normals, surf)))
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Figs. 4.4, 4.7
+def ne_vs_source_zenith(surface="sombrero2", zeniths=tuple(range(20, 85, 5)), *,
+                        counts=(8,), kinds=("Di", "Hi-Sh"), size=128, noise=0.05, seed=0,
+                        mask="None"):
+    """NE versus source zenith for single-ring layouts (Fig. 4.4: Di, several counts;
+    Fig. 4.7: Di and Hi-Sh per sombrero).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``surface, kind, zenith, count, lights, ne``.
+    """
+    import pandas as pd
+    from .lights import layout
+
+    surf = _surface(surface, size)
+    rows = []
+    for kind in _seq(kinds):
+        for n in _seq(counts):
+            for z in _seq(zeniths):
+                lay = layout(_ring(z, n))
+                sc = _render(surf, lay, kind, noise, seed)
+                res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
+                rows.append(dict(surface=_sname(surf, surface), kind=kind, zenith=float(z),
+                                 count=int(n), lights=lay.name, ne=_ne(res.normals, surf)))
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Eq. 4.2
+def propose_zeniths(std_h=15.0, z_opt=45.0):
+    """Rule of thumb of Eq. 4.2 for double-zenith lights.
+
+    Solves ``Z1/2 + std_h = 90 - Z2`` and ``(Z1 + Z2)/2 = z_opt``:
+    ``Z1 = 2 (2 z_opt + std_h - 90)``, ``Z2 = 2 z_opt - Z1``.
+
+    Parameters
+    ----------
+    std_h : float
+        Spread (degrees) of the highlight error around Z_surface = Z1/2.
+    z_opt : float
+        Optimal single-ring zenith without highlights and shadows (45).
+
+    Returns
+    -------
+    (float, float)
+        (Z1, Z2) in degrees; (30, 60) for the defaults.
+    """
+    std_h, z_opt = float(std_h), float(z_opt)
+    z1 = 2.0 * (2.0 * z_opt + std_h - 90.0)
+    z2 = 2.0 * z_opt - z1
+    if not (0.0 < z1 < z2 < 90.0):
+        raise PsbenchError(
+            f"propose_zeniths(std_h={std_h:g}, z_opt={z_opt:g}) gives Z1={z1:g}, Z2={z2:g}; "
+            "expected 0 < Z1 < Z2 < 90 (use a smaller std_h or a z_opt nearer 45)")
+    return z1, z2
+
+
+# ----------------------------------------------------------------------------- Tables 5.5 / 5.6
+def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5_5, *,
+              weights=("None", "e", "eZsource", "eZsurface", "eZsourceZsurface"),
+              binary=(False, True), oracle=False, size=128, noise=0.05, seed=0,
+              z_single=45.0, zeniths=(30.0, 60.0), kind="Hi-Sh"):
+    """The data of Tables 5.5 and 5.6: 1Z PS versus 2Z PS and WPS.
+
+    For each surface and image count n: 1Z = ``{z_single}x{n}`` solved with plain PS;
+    2Z = ``{Z1}x{n/2}+{Z2}x{n/2}`` solved with plain PS over all images
+    (``weight="None"``) and with WPS for every weight in ``weights`` (weighted and,
+    with ``binary`` containing True, binary). Both configurations are rendered with the
+    same seed.
+
+    Parameters
+    ----------
+    surfaces : sequence of str
+    counts : sequence of even int
+    weights : sequence of str
+        WPS weight definitions ("None" = 2Z plain PS).
+    binary : sequence of bool
+    oracle : bool
+        Also the oracle limit (Fig. 4.11e).
+    size : int
+    noise : float
+    seed : int
+    z_single : float
+    zeniths : (float, float)
+    kind : {"Hi-Sh", "Di"}
+
+    Returns
+    -------
+    pandas.DataFrame
+        Tidy rows ``surface, count, source ("1Z"/"2Z"), lights, weight, binary, ne``.
+        :func:`table_5_5` and :func:`table_5_6` pivot it.
+    """
+    import pandas as pd
+    from .lights import layout
+    from .solve.wps import WEIGHTS, wps
+
+    for w in _seq(weights):
+        choice(w, WEIGHTS, "weights")
+    z1, z2 = (float(z) for z in zeniths)
+    rows = []
+    wlist = list(_seq(weights)) + (["oracle"] if oracle else [])
+    for name in _seq(surfaces):
+        surf = _surface(name, size)
+        for n in _seq(counts):
+            n = int(n)
+            if n % 2 or n < 6:
+                raise PsbenchError(f"counts must be even and >= 6 (two rings of >= 3), got {n}")
+            lay1 = layout(_ring(z_single, n))
+            sc1 = _render(surf, lay1, kind, noise, seed)
+            r1 = _ps(sc1.images, lay1, object_mask=surf.mask)
+            rows.append(dict(surface=_sname(surf, name), count=n, source="1Z", lights=lay1.name,
+                             weight="None", binary=False, ne=_ne(r1.normals, surf)))
+            lay2 = layout(f"{_ring(z1, n // 2)}+{_ring(z2, n // 2)}")
+            sc2 = _render(surf, lay2, kind, noise, seed)
+            for w in wlist:
+                for b in (_seq(binary) if w != "None" else [False]):
+                    r = wps(sc2.images, lay2, weight=w, binary=bool(b), object_mask=surf.mask,
+                            truth_normals=surf.normals if w == "oracle" else None)
+                    rows.append(dict(surface=_sname(surf, name), count=n, source="2Z",
+                                     lights=lay2.name, weight=w, binary=bool(b),
+                                     ne=_ne(r.normals, surf)))
+    return pd.DataFrame(rows)
+
+
+def table_5_5(df, *, binary=False):
+    """Pivot :func:`wps_table` output into Table 5.5: mean NE over surfaces, rows
+    (source, weight), columns count, plus the improvement (%) over 1Z PS.
+
+    Returns
+    -------
+    (ne, improvement) : two pandas.DataFrame
+    """
+    d = df[(df["binary"] == binary) | (df["weight"] == "None")]
+    ne = d.pivot_table(index=["source", "weight"], columns="count", values="ne", aggfunc="mean")
+    order = [("1Z", "None")] + [("2Z", w) for w in ("None", "e", "eZsource", "eZsurface",
+                                                    "eZsourceZsurface", "oracle")]
+    ne = ne.reindex([o for o in order if o in ne.index])
+    base = ne.loc[("1Z", "None")]
+    imp = 100.0 * (base - ne) / base
+    return ne, imp.drop(index=("1Z", "None"))
+
+
+def table_5_6(df, *, weight="eZsourceZsurface", count=16):
+    """Pivot :func:`wps_table` output into Table 5.6: NE per surface (and mean) for the
+    weighted and binary WPS with ``weight`` and ``count`` images."""
+    d = df[(df["weight"] == weight) & (df["count"] == count) & (df["source"] == "2Z")]
+    t = d.pivot_table(index="binary", columns="surface", values="ne", aggfunc="mean")
+    t["Mean"] = t.mean(axis=1)
+    t.index = ["Binary" if b else "Weighted" for b in t.index]
+    return t.reindex([i for i in ("Weighted", "Binary") if i in t.index])
