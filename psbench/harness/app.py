@@ -139,7 +139,7 @@ def _task(cfg):
     validate(params)
     sweep = str(cfg.sweep)
     rid = run_id(params)
-    stored = stored_status(root, sweep).get(rid) if not cfg.rerun else None
+    stored = stored_status(root, sweep, [rid]).get(rid) if not cfg.rerun else None
     skip = stored == "ok" or (multi and stored == "failed" and not cfg.retry_failed)
     if skip:
         row = read_run(root, sweep, rid)

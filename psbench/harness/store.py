@@ -129,7 +129,7 @@ def _read_file(path: Path, columns=None):
         return None
 
 
-def _files(root: Path, sweep=None):
+def _files(root: Path, sweep=None, per_run=True):
     """(compact files, per-run files) currently visible in the store."""
     compact_dir, runs_dir = root / "compact", root / "runs"
     if sweep is None:
@@ -142,7 +142,8 @@ def _files(root: Path, sweep=None):
         c = compact_dir / f"{sweep}.parquet"
         comp = [c] if c.is_file() else []
         d = runs_dir / sweep
-        runs = sorted(p for p in d.glob("*.parquet") if _visible(p)) if d.is_dir() else []
+        runs = sorted(p for p in d.glob("*.parquet") if _visible(p)) \
+            if d.is_dir() and per_run else []
     return comp, runs
 
 
@@ -188,10 +189,15 @@ def read_store(root=None, experiment=None, *, sweep=None, status=None):
     return df[list(COLUMNS)]
 
 
-def stored_status(root, sweep) -> dict:
-    """``{run_id: status}`` of the runs stored for ``sweep`` (cheap: reads two columns)."""
+def stored_status(root, sweep, run_ids=None) -> dict:
+    """``{run_id: status}`` of the runs stored for ``sweep`` (cheap: reads three columns).
+
+    With ``run_ids``, only those runs' per-run files (and the compact file) are read.
+    """
     root = default_root(root)
-    comp, runs = _files(root, sweep)
+    comp, runs = _files(root, sweep, per_run=run_ids is None)
+    if run_ids is not None:
+        runs = [p for p in (run_path(root, sweep, r) for r in run_ids) if p.is_file()]
     latest = {}
     for p in comp + runs:
         t = _read_file(p, columns=["run_id", "status", "utc"])
