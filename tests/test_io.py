@@ -243,3 +243,31 @@ def test_ply_grid_triangulation(tmp_path):
     body = data[data.index(b"end_header\n") + 11:]
     assert len(body) == nv2 * 12 + nf2 * 13
     assert struct.unpack("<3f", body[:12]) == pytest.approx((-0.5, 1.0, 1.0))
+
+
+def test_normal_gt_mat_and_colour_dataset(tmp_path):
+    import scipy.io as sio
+    p = tmp_path / "obj"
+    p.mkdir()
+    k, H, W = 4, 6, 5
+    rng = np.random.default_rng(2)
+    rgb = rng.integers(1000, 60000, size=(k, H, W, 3)).astype(np.uint16)
+    names = [f"{i + 1:03d}.png" for i in range(k)]
+    for n, img in zip(names, rgb):
+        cv2.imwrite(str(p / n), img[..., ::-1])
+    (p / "filenames.txt").write_text("\n".join(names) + "\n")
+    np.savetxt(p / "light_directions.txt", layout("40x4").directions)
+    inten = rng.uniform(0.5, 2.0, (k, 3))
+    np.savetxt(p / "light_intensities.txt", inten)
+    gt = np.zeros((H, W, 3))
+    gt[..., 2] = 1
+    sio.savemat(p / "Normal_gt.mat", {"Normal_gt": gt})
+    ds = io.read_dataset(p)
+    # each channel divided by its own intensity, then BT.601 luma
+    want = ((rgb / 65535.0) / inten[:, None, None, :]) @ io.LUMA
+    assert np.allclose(ds.images, want, rtol=1e-5)
+    assert ds.normals.shape == (H, W, 3) and ds.mask.all()
+    assert ds.meta["format"] == "diligent"
+    sio.savemat(p / "Normal_gt.mat", {"N": gt})
+    with pytest.raises(PsbenchError, match="no key 'Normal_gt'"):
+        io.read_dataset(p)

@@ -60,7 +60,7 @@ def main(argv=None):
         args = _parse(argv)
         return _run(args)
     except KeyboardInterrupt:
-        print("\npsbench-capture: interrupted; LEDs switched off, no output folder written",
+        print("\npsbench-capture: interrupted; OFF sent to the LED controller, no output folder written",
               file=sys.stderr)
         return 130
     except PsbenchError as e:
