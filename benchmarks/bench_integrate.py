@@ -1,0 +1,77 @@
+"""Speed of psbench.integrate at 512² and 2048² (median of several runs).
+
+Run: ``python benchmarks/bench_integrate.py [--repeat 5] [--sizes 512 2048]``.
+Cases: a smooth full-frame surface (no mask: one DCT solve for "poisson") and
+a hemisphere-with-notch under a mask (exact masked CG for "poisson"). Prints
+seconds and the ratio against "poisson-dct" (one DCT solve), the baseline.
+The machine is shared: figures are noisy; compare ratios, not absolutes.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from psbench.integrate import integrate
+
+
+def case(N, masked, seed=0):
+    c = np.arange(N)
+    x = c[None, :] - (N - 1) / 2 + 0.0 * c[:, None]
+    y = (N - 1) / 2 - c[:, None] + 0.0 * c[None, :]
+    R = 0.4 * N
+    rr = x ** 2 + y ** 2
+    disc = rr < R ** 2
+    n = np.zeros((N, N, 3))
+    n[..., 2] = 1.0
+    if masked:
+        n[disc, 0] = x[disc] / R
+        n[disc, 1] = y[disc] / R
+        n[disc, 2] = np.sqrt(np.maximum(R ** 2 - rr[disc], 0)) / R
+        mask = disc & ~((np.abs(y) < N / 64) & (x > 0))  # notch: a harder silhouette
+    else:
+        k = 2 * np.pi / N
+        p = 20 * k * np.cos(3 * k * x) * np.cos(2 * k * y) * 3
+        q = -20 * k * np.sin(3 * k * x) * np.sin(2 * k * y) * 2
+        n = np.dstack([-p, -q, np.ones_like(p)])
+        mask = None
+    rng = np.random.default_rng(seed)
+    n = n + 0.02 * rng.normal(size=n.shape)  # estimated normals are noisy
+    return n.astype(np.float32), mask
+
+
+def bench(fn, repeat):
+    fn()  # warm-up (FFT plans, imports)
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[512, 2048])
+    ap.add_argument("--sparse", action="store_true", help="also time poisson-sparse (slow)")
+    a = ap.parse_args(argv)
+    methods = ["poisson-dct", "poisson", "fc"] + (["poisson-sparse"] if a.sparse else [])
+    print(f"{'size':>6} {'case':>8} {'method':>15} {'median s':>10} {'x dct':>7}")
+    for N in a.sizes:
+        for masked in (False, True):
+            n, m = case(N, masked)
+            base = None
+            for meth in methods:
+                if meth == "poisson-sparse" and N > 1024:
+                    continue
+                rep = 1 if meth == "poisson-sparse" else a.repeat
+                t = bench(lambda: integrate(n, m, method=meth), rep)
+                base = t if base is None else base
+                print(f"{N:>6} {'masked' if masked else 'full':>8} {meth:>15} {t:>10.4f} "
+                      f"{t / base:>7.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
