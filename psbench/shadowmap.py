@@ -21,18 +21,22 @@ further along the ray rises above the ray by more than ``bias``::
 shadows. Self shadow (``s.n <= 0``) is not this function's job, although a
 self-shadowed point is usually also reported as occluded.
 
-Algorithm (exact horizon sweep, O(H W) per light)
--------------------------------------------------
-For each light the height map is rotated (``cv2.warpAffine``, bilinear) onto a
-grid whose rows run along the light's horizontal direction with the light
-"above" row 0. There ``g = h + t * row`` is the height of the point lifted to a
-common reference along the ray, and the running maximum of ``g`` from row 0
-(``np.maximum.accumulate``) is the horizon: the highest lifted point between the
-light and each row. The horizon is rotated back with bilinear interpolation,
-shifted by one row so that it only covers points strictly beyond ``p``, and
+Algorithm (horizon sweep along sheared rays, O(H W) per light)
+----------------------------------------------------------------
+Take the image axis closest to the light's horizontal direction as the march
+axis (rows or columns, flipped so the light lies before index 0) and shear the
+height map so that every ray towards the light becomes one column of a working
+grid (``cv2.warpAffine``; the march coordinate stays on whole pixels, so only
+the across-ray coordinate is interpolated, linearly). There
+``g = h + T * rho`` (rho: march index, T: ray rise per step) is the height
+lifted to a common reference along the ray; the running maximum of ``g`` from
+the light's side is the horizon. It is sampled back one march step nearer the
+light (so it covers only points strictly beyond ``p``; linear across rays) and
 compared with ``g(p)`` computed from the *original* heights at the original
-pixel. Interpolating the continuous horizon rather than rotating a boolean map
-keeps shadow edges sub-pixel accurate.
+pixel. Interpolating the continuous horizon, rather than warping a boolean map,
+keeps shadow edges sub-pixel accurate: against a brute-force ray march with
+bilinear heights the maps agree on more than 99.5 % of the pixels (exactly for
+lights along an image axis).
 """
 from __future__ import annotations
 
@@ -45,8 +49,6 @@ __all__ = ["shadow_map", "light_directions"]
 
 #: value given to rotated samples outside the image: "nothing there"
 _FLOOR = np.float32(-1e30)
-#: replicated border (pixels) so bilinear samples at the image edge use real heights
-_PAD = 2
 
 
 def light_directions(directions, name="directions"):
@@ -98,9 +100,10 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
         Height given to pixels outside ``mask``; default the lowest height inside
         the mask.
     oversample : int, default 2
-        Samples per pixel across the light direction in the rotated grid (1..4).
-        2 resolves shadow edges of sharp occluders (steps, pillars) markedly better
-        than 1 at about 1.5x the time; along the light one sample per pixel suffices.
+        Working-grid samples per pixel across the rays (1..4). 2 resolves the shadow
+        edges of sharp occluders (steps, pillars) better than 1 (agreement with a
+        ray march 99.76 % vs 99.54 % of pixels on a pillar) at about 1.7x the
+        time; 1 is enough for smooth or noisy heights.
 
     Returns
     -------
@@ -145,11 +148,11 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
                 raise PsbenchError(f"background must be finite, got {background}")
         h = np.where(inside, h, np.float32(bg)).astype(np.float32)
     hmin, hmax = float(h.min()), float(h.max())
-    # real heights replicated for _PAD pixels, then a ring of "nothing" that
-    # BORDER_REPLICATE extends to infinity (cv2's BORDER_CONSTANT is unreliable for
-    # samples a hair outside the source)
-    hpad = cv2.copyMakeBorder(h, _PAD, _PAD, _PAD, _PAD, cv2.BORDER_REPLICATE)
-    hpad = cv2.copyMakeBorder(hpad, 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=float(_FLOOR))
+    # a one-pixel ring of "nothing" that BORDER_REPLICATE extends to infinity: samples
+    # between the last pixel and the ring fade to the floor, so nothing exists
+    # outside [0, W-1] x [0, H-1] (cv2's BORDER_CONSTANT is unreliable for samples a
+    # hair outside the source)
+    hpad = cv2.copyMakeBorder(h, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=float(_FLOOR))
     hb = h + np.float32(bias)
     for i, (dx, dy, dz) in enumerate(d):
         rxy = float(np.hypot(dx, dy))
@@ -159,61 +162,53 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
         rise = hmax - hmin - bias
         if rise <= 0 or rise / t < 1e-3:
             continue  # no occluder can rise above the ray within reach of any point
-        out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, sc=int(oversample))
+        out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, int(oversample))
     if mask is not None or not finite.all():
         out &= inside[None]
     return out
 
 
-def _fit(half, n):
-    """Smallest size >= 2 * half + 3 whose parity makes the grid centre land on
-    the same sub-grid as the source pixels (n: the matching source extent, already
-    multiplied by the oversampling factor)."""
-    m = 2 * int(np.ceil(half)) + 3
-    return m + ((m - 1 - n) % 2)
-
-
-def _one(h, hb, hpad, ux, uy, t, sc=1, sr=1):
-    """Shadow map (H, W) bool for one light with horizontal unit (ux, uy), rise t.
-
-    The rotated grid has ``sc`` samples per pixel across the light and ``sr`` along it.
-    """
+def _one(h, hb, hpad, ux, uy, t, over=1):
+    """Shadow map (H, W) bool for one light: horizontal unit (ux, uy) in the x-right,
+    y-up frame, rise t per pixel; ``over`` working columns per pixel across rays."""
     H, W = h.shape
-    c0, r0 = (W - 1) / 2.0, (H - 1) / 2.0
-    # rotated frame: column axis (1, 0) -> source (uy, ux); row axis (0, -1) -> (ux, -uy),
-    # the source displacement towards the light in (col, row) coordinates.
-    hw = 0.5 * (abs(uy) * (W - 1) + abs(ux) * (H - 1))
-    hh = 0.5 * (abs(ux) * (W - 1) + abs(uy) * (H - 1))
-    # grid sizes with the parity of the matching source axis, so that axis-aligned
-    # lights sample the source exactly at its pixels (no half-pixel blur)
-    pw, ph = (W - 1, H - 1) if abs(uy) >= abs(ux) else (H - 1, W - 1)
-    W2 = _fit(hw * sc, pw * sc)
-    H2 = _fit(hh * sr, ph * sr)
-    c0r, r0r = (W2 - 1) / 2.0, (H2 - 1) / 2.0
-    # dst (c', r') -> src (c, r) (+ padding offset)
-    R = np.array([[uy, -ux], [ux, uy]])
-    A = R @ np.diag([1.0 / sc, 1.0 / sr])
-    off = np.array([c0, r0]) - A @ np.array([c0r, r0r]) + _PAD + 2
-    fwd = np.hstack([A, off[:, None]])
-    # precision: g = h + t * row can be large for near-vertical lights
-    big = t * H2 / sr > 2e5
+    a, b = ux, -uy  # towards the light in (col, row) units
+    rows = abs(b) >= abs(a)
+    if rows:  # march along rows; k: column change per step towards the light
+        L, La, k, T = H, W, a / abs(b), t / abs(b)
+    else:
+        L, La, k, T = W, H, b / abs(a), t / abs(a)
+    lo, hi = min(0.0, k * (L - 1)), max(0.0, k * (L - 1))
+    qmin = float(np.floor(lo)) - 1.0
+    nq = int(np.ceil((hi + La - qmin) * over)) + 1
+    s = 1.0 / over
+    # F: working (j, rho) -> source (c, r); the ray through q = qmin + j/over is
+    # (across) = q - k rho, and rho = 0 is the image edge facing the light.
+    if rows:
+        F = np.array([[s, -k, qmin], [0.0, 1.0, 0.0]] if b < 0 else
+                     [[s, -k, qmin], [0.0, -1.0, H - 1.0]])
+    else:
+        F = np.array([[0.0, 1.0, 0.0], [s, -k, qmin]] if a < 0 else
+                     [[0.0, -1.0, W - 1.0], [s, -k, qmin]])
+    back = cv2.invertAffineTransform(F)  # source (c, r) -> working (j, rho)
+    # working row w = rho + 1 (row 0 lies outside the image: the exclusive start),
+    # +1 for the floor ring around the source
+    fwd = F.copy()
+    fwd[:, 2] += 1.0 - F[:, 1]
+    big = T * (L + 1) > 2e5  # g = h + T rho loses float32 precision for steep lights
     dtype = np.float64 if big else np.float32
     src = hpad.astype(dtype) if big else hpad
-    g = cv2.warpAffine(src, fwd, (W2, H2), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+    g = cv2.warpAffine(src, fwd, (nq, L + 1), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                        borderMode=cv2.BORDER_REPLICATE)
-    ramp = ((t / sr) * np.arange(H2, dtype=np.float64)).astype(dtype)
-    g += ramp[:, None]
-    np.maximum.accumulate(g, axis=0, out=g)
-    # back: src (c, r) -> rotated (c', r'); r' - 1 so the horizon covers rows strictly
-    # nearer the light than p (the accumulated max up to row r'-1).
-    B = np.diag([float(sc), float(sr)]) @ R.T
-    boff = np.array([c0r, r0r]) - B @ np.array([c0, r0])
-    back = np.hstack([B, (boff - np.array([0.0, 1.0]))[:, None]])
+    g += (T * (np.arange(L + 1, dtype=np.float64) - 1.0)).astype(dtype)[:, None]
+    for w in range(1, L + 1):  # running max towards +rho (row loop: ~5x faster
+        np.maximum(g[w], g[w - 1], out=g[w])  # than np.maximum.accumulate(axis=0))
+    # horizon of p = running max at working row rho(p), i.e. up to rho(p) - 1
     horizon = cv2.warpAffine(g, back, (W, H), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                              borderMode=cv2.BORDER_REPLICATE)
-    # g(p) at the original pixels: h + t * r'(p) / sr, r'/sr = -ux (c - c0) + uy (r - r0) + r0r/sr
-    rowpart = (t * (uy * (np.arange(H) - r0) + r0r / sr)).astype(dtype)
-    colpart = (t * (-ux * (np.arange(W) - c0))).astype(dtype)
+    # g(p) = h(p) + T rho(p), rho affine in (c, r)
+    rowpart = (T * (back[1, 1] * np.arange(H) + back[1, 2])).astype(dtype)
+    colpart = (T * (back[1, 0] * np.arange(W))).astype(dtype)
     thr = hb.astype(dtype, copy=False) + rowpart[:, None]
     thr += colpart[None, :]
     return horizon > thr

@@ -23,7 +23,7 @@ def hemisphere(n=96, radius=30.0, cx=0.0, cy=0.0):
     return np.sqrt(np.maximum(q, 0.0)).astype(np.float32)
 
 
-def pillar(n=96, half=8, height=25.0):
+def pillar(n=96, half=8, height=23.3):
     h = np.zeros((n, n), np.float32)
     c = n // 2
     h[c - half:c + half, c - half:c + half] = height
