@@ -457,7 +457,11 @@ def read_dataset(path, *, calibration="auto", bits=None, unit_tol=1e-3):
     meta["format"] = "psbench" if mj.is_file() else "diligent"
     meta["calibrated"] = False
     calib_path = _find_calibration(folder, meta, calibration)
-    positions = None
+    positions = meta.get("positions")
+    if positions is not None:
+        positions = np.asarray(positions, dtype=np.float64)
+        if positions.shape != (k, 3):
+            raise PsbenchError(f"{mj}: 'positions' must be {k} x 3, got {positions.shape}")
     if calib_path is not None:
         from . import calibrate as _cal
         calib = _cal.load_calibration(calib_path)
@@ -533,7 +537,8 @@ def write_dataset(path, images, lights, mask=None, normals=None, *, bits=16, met
         Written as ``001.png`` ... at ``bits`` (8/12/16; 12 in 16-bit containers,
         recorded as ``"bits": 12`` in psbench.json).
     lights : (k, 3) array_like or Layout
-        Written with full float64 precision; ring ids go to psbench.json.
+        Written with full float64 precision; ring ids (and near-light positions,
+        if the layout has them) go to psbench.json.
     mask : (H, W) bool, optional
         ``mask.png`` (0/255).
     normals : (H, W, 3), optional
@@ -574,6 +579,8 @@ def write_dataset(path, images, lights, mask=None, normals=None, *, bits=16, met
                   else int(np.iinfo(imgs.dtype).bits))
     md.setdefault("ring", [int(r) for r in lay.ring])
     md.setdefault("k", k)
+    if lay.positions is not None:
+        md.setdefault("positions", np.asarray(lay.positions).tolist())
     with atomic_dir(path, overwrite=overwrite) as tmp:
         for n, img in zip(names, imgs):
             write_image(tmp / n, img, bits=bits)

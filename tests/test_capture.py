@@ -196,3 +196,20 @@ def test_harness_runs_on_calibrated_capture(rig, tmp_path):
     ne_ideal = _ne(solve(ideal.images, ideal.lights, mask="None").normals, rig.surface.normals,
                    rig.surface.mask)
     assert abs(row["ne_mean"] - ne_ideal) < 1.0
+
+
+def test_cli_ctrl_c_exit_code(tmp_path, monkeypatch, capsys):
+    import psbench.capture.sim as sim
+    orig = sim.SimCamera.grab
+
+    def grab(self):
+        if self.count == 3:
+            raise KeyboardInterrupt
+        return orig(self)
+
+    monkeypatch.setattr(sim.SimCamera, "grab", grab)
+    rc = capture_main(["rig=sim", f"out={tmp_path / 'c'}", "size=32", "targets=none",
+                       "progress=false"])
+    assert rc == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert _leftovers(tmp_path) == []

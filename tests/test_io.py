@@ -99,6 +99,15 @@ def test_dataset_roundtrip_exact(tmp_path):
         assert (tmp_path / "ds" / f).read_bytes() == (tmp_path / "ds2" / f).read_bytes()
 
 
+def test_positions_roundtrip(tmp_path):
+    imgs, _ = _quantized(k=4)
+    lay = layout("45x4")
+    lay = layout(lay.directions, positions=lay.directions * 500.0, ring=lay.ring)
+    io.write_dataset(tmp_path / "ds", imgs, lay)
+    ds = io.read_dataset(tmp_path / "ds")
+    assert np.allclose(ds.lights.positions, lay.positions)
+
+
 def test_write_dataset_is_atomic(tmp_path):
     imgs, _ = _quantized(k=4)
     with pytest.raises(PsbenchError):
