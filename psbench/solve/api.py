@@ -318,6 +318,8 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         b = kernel.ls(images, S)
         tm.lap("ps")
         valid = np.ones((k, H, W), dtype=bool)
+        if truth_normals is not None:
+            info["ne"] = [_ne(kernel.split(b)[0], truth_normals, omask)]
         return _finish(images, S32, b, valid, None, omask, full, lay, name, method, 0, thr,
                        info, tm, want_height, o, truth_normals)
 

@@ -1,0 +1,139 @@
+"""Speed of psbench.solve against the thesis's Matlab times (Table 5.3).
+
+Usage::
+
+    python benchmarks/bench_solve.py [--size 512] [--runs 5] [--big 2048] [--surface sombrero]
+
+Scenes: Torrance-Sparrow images with shadows, no noise, 16 lights ("30x8+60x8") or
+4 lights ("45x4") for CJ. Prints the median wall time of ``--runs`` runs (timed
+inside ``solve``: ``Result.timings["total"]``), the ratio to None of the same run, the
+psbench target and the thesis's Matlab time (Table 5.3: averages over its test set,
+Intel Core 2 Quad, images of 512 x 512; a context figure, not a like-for-like
+comparison). ``--big`` runs weighted Th-Hi-Re-Sh once at that size in a subprocess
+and reports its time and peak RSS (``resource.getrusage(RUSAGE_CHILDREN)``).
+
+The machine is shared: figures are noisy, compare ratios rather than absolutes.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import psbench as ps
+from psbench.solve import solve
+
+# mask, lights, target seconds, Matlab seconds (Table 5.3)
+CASES = [
+    ("None", "30x8+60x8", 0.010, 0.11),
+    ("Th", "30x8+60x8", 0.080, 1.67),
+    ("Th-Hi-Re-Sh", "30x8+60x8", 1.0, 20.12),
+    ("xNL", "30x8+60x8", 0.5, 16.94),
+    ("RA", "30x8+60x8", 0.5, 5.00),
+    ("None", "45x4", None, 0.08),
+    ("CJ", "45x4", 0.050, 0.48),
+]
+
+CHILD = r"""
+import json, sys, time, resource
+import numpy as np
+import psbench as ps
+from psbench.solve import solve
+images = np.load(sys.argv[1])
+mask = np.load(sys.argv[2])
+lay = ps.layout(sys.argv[3])
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t0 = time.perf_counter()
+res = solve(images, lay, mask="Th-Hi-Re-Sh", weighted=True, object_mask=mask)
+t = time.perf_counter() - t0
+print(json.dumps({"seconds": t, "timings": res.timings, "iterations": res.iterations,
+                  "rss_before_solve_mb": base / 1024.0}))
+"""
+
+
+def _scene(surface, size, lights):
+    surf = ps.make_surface(surface, size=size)
+    lay = ps.layout(lights)
+    return surf, lay, ps.render(surf, lay, model="ts", shadows=True)
+
+
+def bench(size=512, runs=5, surface="sombrero"):
+    scenes = {}
+    rows = []
+    base = {}
+    for mask, lights, target, matlab in CASES:
+        if lights not in scenes:
+            scenes[lights] = _scene(surface, size, lights)
+        surf, lay, sc = scenes[lights]
+        solve(sc.images, lay, mask=mask, object_mask=surf.mask)  # warm-up (imports, caches)
+        ts, cpu = [], []
+        for _ in range(runs):
+            c0 = time.process_time()
+            res = solve(sc.images, lay, mask=mask, object_mask=surf.mask)
+            cpu.append(time.process_time() - c0)
+            ts.append(res.timings["total"])
+        med = float(np.median(ts))
+        if mask == "None":
+            base[lights] = med
+        ne = ps.normal_error(res.normals, surf.normals, surf.mask)
+        rows.append((mask, lights, med, med / base[lights], target, matlab, ne, res.iterations,
+                     float(np.min(ts)), float(np.median(cpu))))
+    print(f"\npsbench.solve at {size}x{size}, surface {surface}, TS with shadows, "
+          f"median of {runs} runs (ms)")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"{'mask':14s} {'lights':10s} {'median':>9s} {'min':>8s} {'cpu':>8s} {'xNone':>6s} "
+          f"{'target':>7s} {'ok':>3s} {'Matlab':>7s} {'speedup':>8s} {'NE deg':>7s} {'iter':>4s}")
+    for mask, lights, med, ratio, target, matlab, ne, it, mn, cpu in rows:
+        tg = f"{target * 1e3:7.0f}" if target else f"{'-':>7s}"
+        ok = ("yes" if med <= target else "NO") if target else "-"
+        print(f"{mask:14s} {lights:10s} {med * 1e3:9.1f} {mn * 1e3:8.1f} {cpu * 1e3:8.1f} "
+              f"{ratio:6.1f} {tg} {ok:>3s} {matlab * 1e3:7.0f} {matlab / med:8.0f} {ne:7.2f} {it:4d}")
+    print("median/min: wall ms timed inside solve; cpu: process CPU ms (all threads); "
+          "ok compares the median with the target; Matlab: Table 5.3 (s x 1000)")
+    return rows
+
+
+def bench_big(size=2048, surface="sombrero", lights="30x8+60x8"):
+    surf, lay, sc = _scene(surface, size, lights)
+    with tempfile.TemporaryDirectory() as d:
+        fi, fm = os.path.join(d, "images.npy"), os.path.join(d, "mask.npy")
+        np.save(fi, sc.images)
+        np.save(fm, surf.mask)
+        del sc
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, "-c", CHILD, fi, fm, lights], check=True,
+                             capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+    info = json.loads(out.stdout.strip().splitlines()[-1])
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0  # kB -> MB (Linux)
+    print(f"\nweighted Th-Hi-Re-Sh at {size}x{size}, {lights}: solve {info['seconds']:.2f} s "
+          f"(target <= 15 s: {'yes' if info['seconds'] <= 15 else 'NO'}), "
+          f"iterations {info['iterations']}, peak RSS {peak:.0f} MB "
+          f"(target <= 4096 MB: {'yes' if peak <= 4096 else 'NO'}; "
+          f"images + interpreter before solve {info['rss_before_solve_mb']:.0f} MB), "
+          f"subprocess wall {wall:.1f} s")
+    print("  stages (s): " + ", ".join(f"{k} {v:.2f}" for k, v in info["timings"].items()))
+    return info, peak
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--big", type=int, default=2048, help="size of the memory run (0: skip)")
+    ap.add_argument("--surface", default="sombrero")
+    a = ap.parse_args(argv)
+    bench(a.size, max(5, a.runs), a.surface)
+    if a.big:
+        bench_big(a.big, a.surface)
+
+
+if __name__ == "__main__":
+    main()
