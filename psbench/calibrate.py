@@ -737,12 +737,23 @@ def step_response(calib, chart_folder, degree=6):
     return calib
 
 
-def step_directions(calib, sphere_folder, *, distance=None, fraction=0.8):
+def step_directions(calib, sphere_folder, *, distance=None, fraction=0.8, center=None,
+                    radius=None):
     ds, dark = _read_folder_images(sphere_folder)
     imgs = apply_calibration(ds.images, calib, dark=dark, steps=["dark", "response"])
-    d, n, pts = light_directions_from_sphere(imgs, ds.mask, fraction=fraction)
+    has_mask = (Path(sphere_folder) / "mask.png").is_file()
+    if not has_mask and (center is None or radius is None):
+        raise PsbenchError(f"{sphere_folder}: no mask.png; give the sphere --center X Y and --radius R")
+    mask = ds.mask if has_mask else None
+    d, n, pts = light_directions_from_sphere(imgs, mask, center=center, radius=radius,
+                                             fraction=fraction)
     calib.directions = d
-    cx, cy, R = sphere_geometry(ds.mask)
+    if has_mask:
+        cx, cy, R = sphere_geometry(ds.mask)
+    if center is not None:
+        cx, cy = center
+    if radius is not None:
+        R = float(radius)
     if distance is None:
         distance = ds.meta.get("distance_px")
     calib.meta["sphere"] = {"center": [cx, cy], "radius": R, "distance_px": distance}
@@ -850,8 +861,12 @@ def main(argv=None):
         if name == "response":
             p.add_argument("--degree", type=int, default=6)
         if name == "directions":
-            p.add_argument("--distance", type=float)
+            p.add_argument("--distance", type=float,
+                           help="LED distance from the sphere centre in pixels (enables near light)")
             p.add_argument("--fraction", type=float, default=0.8)
+            p.add_argument("--center", type=float, nargs=2, metavar=("X", "Y"),
+                           help="sphere centre in psbench's frame (pixels from the image centre, y up)")
+            p.add_argument("--radius", type=float, help="sphere radius in pixels")
         if name == "flat":
             p.add_argument("--degree", type=int, default=4)
         if name == "pixelsize":
@@ -882,7 +897,8 @@ def main(argv=None):
         elif args.step == "response":
             step_response(c, args.input, args.degree)
         elif args.step == "directions":
-            step_directions(c, args.input, distance=args.distance, fraction=args.fraction)
+            step_directions(c, args.input, distance=args.distance, fraction=args.fraction,
+                            center=args.center, radius=args.radius)
         elif args.step == "flat":
             step_white(c, args.input, degree=args.degree, powers=False)
         elif args.step == "powers":

@@ -234,3 +234,15 @@ def test_cli_steps_incremental(tmp_path, capsys):
     ds = read_dataset(out, calibration=cdir)
     assert ds.meta["calibrated"] and ds.lights.positions is not None
     assert cal.main(["response", str(tmp_path / "missing"), "--out", str(cdir)]) == 2
+    # sphere without a mask: centre and radius given on the command line
+    import shutil
+    sph = tmp_path / "sphere"
+    shutil.copytree(raw / "sphere", sph)
+    (sph / "mask.png").unlink()
+    c2 = tmp_path / "cal2"
+    assert cal.main(["directions", str(sph), "--out", str(c2)]) == 2
+    R = float(np.sqrt(cal.load_calibration(cdir).meta["sphere"]["radius"] ** 2))
+    assert cal.main(["directions", str(sph), "--out", str(c2), "--center", "0", "0",
+                     "--radius", str(R)]) == 0
+    d1, d2 = cal.load_calibration(cdir).directions, cal.load_calibration(c2).directions
+    assert _ang(d1, d2).max() < 0.5
