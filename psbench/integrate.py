@@ -25,7 +25,10 @@ pixels are inside ``mask``.
     DCT-diagonal; it is solved by conjugate gradients preconditioned with the
     full-grid DCT solve and warm-started from ``"poisson-dct"``: typically
     5-30 iterations (convex silhouettes converge fastest; slits and thin
-    necks slowest), stopping at ``tol`` relative residual.
+    necks slowest), stopping at ``tol`` relative residual (``tol=1e-4``: height
+    errors of a few hundredths of a pixel). Mask components of at most
+    :data:`SMALL_COMPONENT` pixels are solved directly (sparse LU), and so is
+    a ragged mask on which CG does not converge within ``maxiter``.
 ``"poisson-dct"``
     One DCT solve where edges outside the mask or across its boundary get the
     target 0: the background is a flat, free membrane. Fastest, and exact
@@ -57,6 +60,8 @@ Height datum
 Pixels outside the mask are set to 0 (the base plane) in both cases.
 """
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import scipy.fft as sfft
@@ -179,13 +184,14 @@ def _components(mask):
     return ndimage.label(mask)
 
 
-def _align_components(z, mask):
+def _align_components(z, mask, *, label=None, ncomp=None):
     """Shift every 4-connected component of ``mask`` so that its minimum is 0.
 
     Separate components share no edge, so their relative offsets are not fixed
     by the normals; psbench assumes the objects rest on a common base plane.
     """
-    label, ncomp = _components(mask)
+    if label is None:
+        label, ncomp = _components(mask)
     if ncomp <= 1:
         return z
     lab = label[mask]
@@ -196,13 +202,19 @@ def _align_components(z, mask):
     return z
 
 
-def _poisson_masked(gcol, grow, mask, *, tol, maxiter):
+def _poisson_cg(gcol, grow, mask, *, tol, maxiter):
     """Exact masked least squares by conjugate gradients, DCT-preconditioned.
 
     Operator: Laplacian of the graph of in-mask edges (on the full grid; rows of
     background pixels are zero). Preconditioner: the full-grid Neumann Laplacian
     (one DCT pair). Start: the membrane solution of :func:`_poisson_dct`.
-    Stops when ||r|| <= tol * ||b||.
+    Stops when ||r|| <= tol * ||b||. Component offsets are left as they come.
+
+    Returns
+    -------
+    z : (H, W) float64
+    iterations : int
+    converged : bool
     """
     H, W = gcol.shape
     ex, ey = _edge_targets(gcol, grow, mask)
@@ -234,12 +246,13 @@ def _poisson_masked(gcol, grow, mask, *, tol, maxiter):
     r = b - apply(z, Ad)
     nb = float(np.sqrt(np.vdot(b, b)))
     if nb == 0.0:
-        return z, 0
+        return z, 0, True
     y = precond(r)
     d = y.copy()
     rz = float(np.vdot(r, y))
-    it = 0
-    for it in range(1, maxiter + 1):
+    it, converged = 0, bool(np.sqrt(np.vdot(r, r)) <= tol * nb)
+    while not converged and it < maxiter:
+        it += 1
         apply(d, Ad)
         dAd = float(np.vdot(d, Ad))
         if not dAd > 0:
@@ -249,13 +262,46 @@ def _poisson_masked(gcol, grow, mask, *, tol, maxiter):
         Ad *= a
         r -= Ad
         if np.sqrt(np.vdot(r, r)) <= tol * nb:
+            converged = True
             break
         y = precond(r)
         rz_new = float(np.vdot(r, y))
         d *= rz_new / rz
         d += y
         rz = rz_new
-    return _align_components(z, mask), it
+    return z, it, converged
+
+
+#: components up to this many pixels are solved directly (sparse LU), larger by CG
+SMALL_COMPONENT = 2048
+#: if CG does not converge within ``maxiter``, masks up to this many pixels are
+#: solved directly instead (larger ones keep the CG result with a warning)
+SPARSE_FALLBACK = 1 << 20
+
+
+def _poisson_exact(gcol, grow, mask, *, tol, maxiter):
+    """Exact masked least squares: small components by sparse LU, the rest by CG."""
+    label, ncomp = _components(mask)
+    sizes = np.bincount(label.ravel(), minlength=ncomp + 1)
+    small = sizes <= SMALL_COMPONENT
+    small[0] = False
+    z = np.zeros(mask.shape)
+    small_mask = small[label]
+    if small_mask.any():
+        z += _poisson_sparse(gcol, grow, small_mask)
+    big_mask = mask & ~small_mask
+    if big_mask.any():
+        zb, it, ok = _poisson_cg(gcol, grow, big_mask, tol=tol, maxiter=maxiter)
+        if not ok and big_mask.sum() <= SPARSE_FALLBACK:
+            # ragged masks (near-percolating holes, thin mazes) defeat the DCT
+            # preconditioner; fall back to the direct solver
+            zb = _poisson_sparse(gcol, grow, big_mask)
+        elif not ok:
+            warnings.warn(f"integrate: conjugate gradients stopped after {it} iterations "
+                          f"above tol={tol:g}; heights are approximate (raise maxiter or "
+                          f"use method='poisson-sparse')", RuntimeWarning, stacklevel=4)
+        z[big_mask] = zb[big_mask]
+    return _align_components(z, mask, label=label, ncomp=ncomp)
 
 
 def _fc(gcol, grow):
@@ -283,8 +329,6 @@ def _poisson_sparse(gcol, grow, mask):
     from scipy.sparse.linalg import spsolve
 
     H, W = gcol.shape
-    if mask is None:
-        mask = np.ones((H, W), dtype=bool)
     ex, ey = _edge_targets(gcol, grow, mask)
     idx = -np.ones((H, W), dtype=np.int64)
     n = int(mask.sum())
@@ -313,11 +357,11 @@ def _poisson_sparse(gcol, grow, mask):
         Lk = L[keep][:, keep].tocsc()
         sol[keep] = spsolve(Lk, rhs[keep])
     z[mask] = sol
-    return _align_components(z, mask)
+    return z
 
 
 def integrate(normals, mask=None, *, method="poisson", datum="min", nz_min=NZ_MIN,
-              tol=1e-4, maxiter=200):
+              tol=1e-4, maxiter=100):
     """Integrate a normal map into a height map.
 
     Parameters
@@ -385,9 +429,10 @@ def _integrate_box(n, m, method, nz_min, tol, maxiter):
     if method == "poisson-dct" or (method == "poisson" and m is None):
         z = _poisson_dct(gcol, grow, m)
     elif method == "poisson":
-        z, _ = _poisson_masked(gcol, grow, m, tol=tol, maxiter=maxiter)
+        z = _poisson_exact(gcol, grow, m, tol=tol, maxiter=maxiter)
     elif method == "fc":
         z = _fc(gcol, grow)
     else:
-        z = _poisson_sparse(gcol, grow, m)
+        mm = np.ones(n.shape[:2], dtype=bool) if m is None else m
+        z = _align_components(_poisson_sparse(gcol, grow, mm), mm)
     return z

@@ -202,3 +202,17 @@ def test_empty_mask_gives_zeros():
 def test_bad_input(bad, kw, msg):
     with pytest.raises(PsbenchError, match=msg):
         integrate(bad, **kw)
+
+
+def test_ragged_mask_and_cg_fallback_match_sparse():
+    rng = np.random.default_rng(5)
+    n = rng.normal(size=(40, 44, 3)).astype(np.float32)
+    n[..., 2] = np.abs(n[..., 2]) + 0.3
+    ragged = rng.random((40, 44)) < 0.6  # many small components: direct solve
+    np.testing.assert_allclose(integrate(n, ragged), integrate(n, ragged, method="poisson-sparse"),
+                               atol=1e-4)
+    # CG stopped early on a large component falls back to the direct solver
+    nh, _, disc, _ = _hemisphere(N=80, R=30.0)
+    disc[38:42, 40:] = False
+    np.testing.assert_allclose(integrate(nh, disc, maxiter=1),
+                               integrate(nh, disc, method="poisson-sparse"), atol=1e-4)
