@@ -296,8 +296,34 @@ def oracle_weights(ring_b, truth, *, binary=False):
 def fuse(ring_b, w):
     """Eq. 4.9: ``sum_j w_j b_j`` for ring_b (R, 3, N) and w (R, N) -> (3, N)."""
     out = ring_b[0] * w[0]
-    for j in range(1, ring_b.shape[0]):
+    for j in range(1, len(ring_b)):
         out += ring_b[j] * w[j]
+    return out
+
+
+def _dot3(a, b):
+    """Row-wise dot product of two (3, N) arrays."""
+    out = a[0] * b[0]
+    out += a[1] * b[1]
+    out += a[2] * b[2]
+    return out
+
+
+def _quad3(d, G):
+    """d^T G d per column of a (3, N) array, symmetric 3x3 G."""
+    G = np.asarray(G, dtype=np.float32)
+    d0, d1, d2 = d
+    out = (G[0, 0] * d0 + np.float32(2) * (G[0, 1] * d1 + G[0, 2] * d2)) * d0
+    out += (G[1, 1] * d1 + np.float32(2) * G[1, 2] * d2) * d1
+    out += G[2, 2] * d2 * d2
+    return out
+
+
+def _transpose(b, N):
+    """(3, N) -> contiguous (N, 3)."""
+    out = np.empty((N, 3), dtype=np.float32)
+    for c in range(3):
+        out[:, c] = b[c]
     return out
 
 
@@ -422,20 +448,20 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
                 U = np.linalg.svd(S[idx], full_matrices=True)[0]
                 M[idx, col:col + dof[j]] = U[:, 3:]
             col += dof[j]
-        Bn = I2.T @ M.astype(np.float32)  # (N, 3R + sum dof)
-        ring_b = [Bn[:, 3 * j:3 * j + 3] for j in range(R)]
+        X = M.T.astype(np.float32) @ I2  # (3R + sum dof, N), rows contiguous
+        ring_b = [X[3 * j:3 * j + 3] for j in range(R)]
         e2 = np.zeros((R, N), dtype=np.float32)
         col = 3 * R
         for j, idx in enumerate(rings):
             if dof[j]:
-                X = Bn[:, col:col + dof[j]]
-                np.einsum("ni,ni->n", X, X, out=e2[j])
+                Xj = X[col:col + dof[j]]
+                np.einsum("ij,ij->j", Xj, Xj, out=e2[j])
                 e2[j] *= np.float32(1.0 / idx.size)
             col += dof[j]
         valid = None
     else:
         from .api import solve
-        Bn = np.empty((N, 3 * R), dtype=np.float32)
+        X = np.empty((3 * R, N), dtype=np.float32)
         e2 = np.empty((R, N), dtype=np.float32)
         valid = np.ones((k, H, W), dtype=bool)
         ring_info = []
@@ -444,7 +470,7 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
                        object_mask=object_mask, thresholds=thresholds, max_iter=max_iter,
                        seed=seed, truth_normals=truth, **opts)
             bj = rj.normals * rj.albedo[..., None]
-            Bn[:, 3 * j:3 * j + 3] = bj.reshape(N, 3)
+            X[3 * j:3 * j + 3] = bj.reshape(N, 3).T
             vj = rj.valid
             valid[idx] = vj
             r2 = (images[idx] - kernel.lambert(bj, S[idx])) ** 2
@@ -456,11 +482,11 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
             iterations = max(iterations, rj.iterations)
             thr_used[f"ring{j}"] = rj.thresholds
             ring_info.append(rj.info)
-        ring_b = [Bn[:, 3 * j:3 * j + 3] for j in range(R)]
+        ring_b = [X[3 * j:3 * j + 3] for j in range(R)]
         info["rings"] = ring_info
     rho = np.empty((R, N), dtype=np.float32)
     for j in range(R):
-        np.sqrt(np.einsum("ni,ni->n", ring_b[j], ring_b[j]), out=rho[j])
+        np.sqrt(_dot3(ring_b[j], ring_b[j]), out=rho[j])
     tm["rings"] = time.perf_counter() - t
     t = time.perf_counter()
 
@@ -470,8 +496,7 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
         for j, idx in enumerate(rings):
             w[j] = idx.size / k
     elif weight == "oracle":
-        Bt = np.stack([b.T for b in ring_b])
-        w = oracle_weights(Bt, truth.reshape(N, 3).T, binary=binary)
+        w = oracle_weights(np.stack(ring_b), truth.reshape(N, 3).T, binary=binary)
     else:
         u = np.empty((R, N), dtype=np.float32)
         for j in range(R):
@@ -481,7 +506,7 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
             if weight in ("eZsource", "eZsourceZsurface"):
                 uj *= np.float32(np.sin(np.radians(zen[j])))
             if weight in ("eZsurface", "eZsourceZsurface"):
-                nz = ring_b[j][:, 2] / np.maximum(rho[j], np.float32(1e-30))
+                nz = ring_b[j][2] / np.maximum(rho[j], np.float32(1e-30))
                 np.clip(nz, -1.0, 1.0, out=nz)
                 zs = np.arccos(nz, out=nz)
                 zs *= np.float32(180.0 / np.pi)
@@ -507,9 +532,8 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
             b = (r0.normals * r0.albedo[..., None]).reshape(N, 3)
             valid = r0.valid
     else:
-        b = ring_b[0] * w[0][:, None]
-        for j in range(1, R):
-            b += ring_b[j] * w[j][:, None]
+        bf = fuse(ring_b, w)  # (3, N)
+        b = _transpose(bf, N)
     normals, albedo = kernel.split(b.reshape(H, W, 3))
     tm["fuse"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -517,11 +541,11 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
     # ---- residual of the fused solution -----------------------------------------------
     if plain:
         # Pythagoras per ring: |I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T G_j (b_j - b)
-        bo = normals.reshape(N, 3) * albedo.reshape(N, 1)
+        bo = bf if weight != "None" else b.T  # fused rho n, (3, N)
         r2 = np.zeros(N, dtype=np.float32)
         for j, idx in enumerate(rings):
             d = ring_b[j] - bo
-            r2 += np.einsum("ni,ni->n", d @ G[j].astype(np.float32), d)
+            r2 += _quad3(d, G[j])
             r2 += e2[j] * np.float32(idx.size)
         resid = np.sqrt(r2).reshape(H, W)
         valid = np.ones((k, H, W), dtype=bool)
@@ -534,8 +558,9 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
 
     ring_normals = np.empty((R, N, 3), dtype=np.float32)
     for j in range(R):
-        np.multiply(ring_b[j], (np.float32(1.0) / np.maximum(rho[j], np.float32(1e-30)))[:, None],
-                    out=ring_normals[j])
+        inv = np.float32(1.0) / np.maximum(rho[j], np.float32(1e-30))
+        for c in range(3):
+            np.multiply(ring_b[j][c], inv, out=ring_normals[j][:, c])
         zero = rho[j] <= 1e-6
         if zero.any():
             ring_normals[j][zero] = (0.0, 0.0, 1.0)
