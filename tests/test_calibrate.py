@@ -245,4 +245,4 @@ def test_cli_steps_incremental(tmp_path, capsys):
     assert cal.main(["directions", str(sph), "--out", str(c2), "--center", "0", "0",
                      "--radius", str(R)]) == 0
     d1, d2 = cal.load_calibration(cdir).directions, cal.load_calibration(c2).directions
-    assert _ang(d1, d2).max() < 0.5
+    assert _ang(d1, d2).max() < 1.0  # 64 px sphere: the mask edge vs the exact circle
