@@ -240,17 +240,18 @@ def intensity_error_map(images, result, lights=None, *, norm="l2", clamp=False,
     imgs = as_images(images, "images")
     k, H, W = imgs.shape
     choice(norm, NORMS, "norm")
+    if valid is not None:
+        v = np.asarray(valid)
+        if v.shape != (k, H, W):
+            raise PsbenchError(f"valid must have shape {(k, H, W)}, got {v.shape}")
+        v = v.astype(bool, copy=False)
     b, S = _b_and_S(result, lights, k, (H, W))
-    pred = np.einsum("kc,hwc->khw", S, b)
+    pred = (S @ b.reshape(-1, 3).T).reshape(k, H, W)  # linear Lambert prediction
     if clamp:
         np.maximum(pred, 0.0, out=pred)
-    R = imgs.astype(np.float64) - pred
+    R = np.subtract(imgs, pred, out=pred)
     if valid is None:
         return _norm(R, norm, average)
-    v = np.asarray(valid)
-    if v.shape != (k, H, W):
-        raise PsbenchError(f"valid must have shape {(k, H, W)}, got {v.shape}")
-    v = v.astype(bool, copy=False)
     R = np.where(v, R, 0.0)
     cnt = v.sum(axis=0)
     if norm == "linf":
@@ -380,15 +381,28 @@ def dynamic_range(images, mask=None):
     return float((v.max(axis=1) - v.min(axis=1)).astype(np.float64).mean())
 
 
-def ie_relative(images, result, lights=None, *, mask=None, **kwargs):
-    """IE as a percentage of the mean image dynamic range (over the mask).
+def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, **kwargs):
+    """IE as a percentage of the mean image dynamic range.
 
-    ``100 * intensity_error(...) / dynamic_range(images, mask)``; keyword
-    arguments are passed to :func:`intensity_error`. With ``per_pixel=True``
-    returns the (H, W) map in percent. NaN when the range is 0.
+    ``100 * intensity_error(...) / range``; keyword arguments are passed to
+    :func:`intensity_error`. With ``per_pixel=True`` returns the (H, W) map in
+    percent. NaN when the range is not positive.
+
+    Parameters
+    ----------
+    dynamic_range : float or (k,) array_like, optional
+        The range to divide by (its mean for an array), e.g. a Scene's
+        ``dynamic_range`` of the clean images. Default: :func:`dynamic_range`
+        of ``images`` over the mask (max - min of each image, averaged).
     """
     ie = intensity_error(images, result, lights, mask=mask, **kwargs)
-    dr = dynamic_range(images, mask)
+    if dynamic_range is None:
+        dr = globals()["dynamic_range"](images, mask)
+    else:
+        dr = np.asarray(dynamic_range, dtype=np.float64)
+        if dr.ndim > 1 or dr.size == 0:
+            raise PsbenchError(f"dynamic_range must be a number or a (k,) array, got shape {dr.shape}")
+        dr = float(dr.mean())
     if not dr > 0:
         return ie * np.nan if kwargs.get("per_pixel") else float("nan")
     return 100.0 * ie / dr

@@ -224,6 +224,11 @@ def test_ie_relative():
     res = SimpleNamespace(normals=n, albedo=rho, lights=S)
     dr = np.mean([im.max() - im.min() for im in images])
     assert M.ie_relative(imgs, res, norm="l1") == pytest.approx(100 * 0.05 / dr, rel=1e-4)
+    assert M.dynamic_range(imgs) == pytest.approx(dr, rel=1e-5)
+    assert M.ie_relative(imgs, res, norm="l1", dynamic_range=[0.5, 1.5]) == pytest.approx(5.0)
+    pp = M.ie_relative(imgs, res, norm="l1", dynamic_range=0.5, per_pixel=True)
+    np.testing.assert_allclose(pp, 10.0, rtol=1e-4)
+    assert np.isnan(M.ie_relative(imgs, res, dynamic_range=0.0))
 
 
 @pytest.mark.parametrize("kw, msg", [
@@ -237,6 +242,12 @@ def test_ie_relative():
      "lights are required"),
     (dict(images=np.zeros((3, 4, 5)), result=np.zeros((4, 5, 3)), lights=np.eye(3),
           norm="l3"), "norm"),
+    (dict(images=np.zeros((3, 4, 5)), result=np.zeros((4, 5, 3)), lights=np.eye(3),
+          valid=np.ones((3, 4), bool)), "valid must have shape"),
+    (dict(images=np.zeros((3, 4, 5)), result=np.zeros((4, 5, 3)), lights=np.eye(3),
+          mask=np.ones((5, 4), bool)), "mask must have shape"),
+    (dict(images=np.zeros((3, 4, 5)), result=SimpleNamespace(normals=np.zeros((4, 5, 3))),
+          lights=np.eye(3)), "albedo"),
 ])
 def test_ie_bad_input(kw, msg):
     with pytest.raises(PsbenchError, match=msg):
