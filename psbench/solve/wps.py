@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -131,11 +131,6 @@ def _result_class():
             def b(self):
                 return self.normals * self.albedo[..., None]
     else:
-        names = {f.name for f in fields(Base)}
-        extra = [("ring_normals", np.ndarray | None, None), ("ring_albedo", np.ndarray | None, None),
-                 ("ring_residual", np.ndarray | None, None), ("weight", str, DEFAULT_WEIGHT),
-                 ("binary", bool, False)]
-
         @dataclass(eq=False, repr=False)
         class WPSResult(Base):
             ring_normals: np.ndarray | None = None
@@ -149,7 +144,6 @@ def _result_class():
                 return (f"WPSResult(weight={self.weight!r}, binary={self.binary}, "
                         f"mask={self.mask!r}, rings={self.weights.shape[0]}, size={H}x{W}, "
                         f"total={self.timings.get('total', float('nan')):.3f}s)")
-        del names, extra
     WPSResult.__doc__ = """Output of :func:`psbench.solve.wps.wps`.
 
     The fields of :class:`psbench.solve.Result` (``normals (H, W, 3)``, ``albedo``,
