@@ -321,3 +321,23 @@ def test_qf_bad_input():
         M.quality_factor(fl, dict(self_shadow=truth["self_shadow"]))
     with pytest.raises(PsbenchError, match="mask must have shape"):
         M.quality_factor(fl, truth, np.ones((2, 2), bool))
+
+
+# ------------------------------------------------------------------ with rendered scenes
+def test_metrics_on_rendered_scene():
+    import psbench as ps
+
+    surf = ps.make_surface("semisphere", size=64)
+    lay = ps.layout("45x8")
+    sc = ps.render(surf, lay, model="lambert", shadows=True)
+    b = surf.normals.astype(np.float64)  # albedo 1
+    # attached shadows clamp the images: the clamped prediction is exact,
+    # the linear one is not unless shadowed observations are left out
+    assert M.intensity_error(sc.images, b, lay, mask=surf.mask, clamp=True) < 1e-5
+    assert M.intensity_error(sc.images, b, lay, mask=surf.mask) > 1e-3
+    assert M.intensity_error(sc.images, b, lay, mask=surf.mask, valid=~sc.shadow) < 1e-5
+    # QF with the Scene itself as truth: flagging exactly the truth is perfect
+    sc2 = ps.render(surf, lay, model="ts")
+    q = M.quality_factor(sc2.highlight | sc2.shadow, sc2, surf.mask)
+    assert q == dict(hi=1.0, sh=1.0, total=1.0)
+    assert M.normal_error(surf.normals, surf.normals, surf.mask) == pytest.approx(0, abs=1e-3)
