@@ -278,31 +278,43 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     sigma = np.zeros(k, dtype=np.float32)
     rng = np.random.default_rng(seed)
     full = bool(mask.all())
+    outside = None if full else ~mask
+    dark = np.empty((H, W), dtype=bool)
+    keep = np.empty((H, W), dtype=bool)
     for i in range(k):
         diff, spec, lit = shader.light(i)
-        np.logical_and(~lit, mask, out=self_sh[i])
+        np.logical_not(lit, out=dark)  # dark: self or cast shadow, or off the object
+        np.copyto(self_sh[i], dark)
+        if outside is not None:
+            self_sh[i] &= mask
+            dark |= outside
         if occluded is not None:
             np.logical_and(occluded[i], lit, out=cast_sh[i])
-            cast_sh[i] &= mask
-        dark = ~lit | cast_sh[i] | ~mask
+            if outside is not None:
+                cast_sh[i] &= mask
+            dark |= cast_sh[i]
         img = images[i]
         if spec is None:
             np.copyto(img, diff)
         else:
             np.add(diff, spec, out=img)
-        img[dark] = 0.0
-        hi = float(np.max(img, where=mask, initial=-np.inf))
-        lo = float(np.min(img, where=mask, initial=np.inf))
+        np.logical_not(dark, out=keep)
+        np.multiply(img, keep, out=img)  # much faster than img[dark] = 0 or copyto(where)
+        if full:
+            hi, lo = float(img.max()), float(img.min())
+        else:
+            hi = float(np.max(img, where=mask, initial=-np.inf))
+            lo = float(np.min(img, where=mask, initial=np.inf))
         drange[i] = hi - lo if np.isfinite(hi) else 0.0
         if spec is not None and highlight_fraction * drange[i] > 0:
             np.greater(spec, np.float32(highlight_fraction * drange[i]), out=highlight[i])
-            highlight[i] &= ~dark
+            highlight[i] &= keep
         if noise > 0:
             sigma[i] = np.float32(noise * drange[i])
             z = rng.standard_normal((H, W), dtype=np.float32)
             z *= sigma[i]
-            if not full:
-                z[~mask] = 0.0
+            if outside is not None:
+                z *= mask
             img += z
     if quantize is not None:
         _quantize(images, mask, quantize)
