@@ -215,3 +215,22 @@ def test_select_lights_nearest_subset():
     assert len(set(sub[:, 0, 0].tolist())) == 8          # distinct images
     with pytest.raises(PsbenchError, match="needs 40"):
         run.select_lights(imgs, have, "45x40")
+
+
+def test_solve_extras_and_analysis_rows():
+    p = run.normalize({"surface": "semisphere", "size": 24, "mask": "None",
+                       "extras": ["ne_by_zenith"], "noise": 0.0})
+    row = run.execute(p, sweep="x")
+    assert row["status"] == "ok", row.get("traceback")
+    curve = json.loads(row["ne_by_zenith"])
+    assert {"zenith", "ne", "count"} <= set(curve)
+    for c in ("ne_mean", "ne_lt20", "ie_l1", "ie_l2", "ie_linf", "ie_rel", "qf_total", "t_render"):
+        assert row[c] is not None, c
+    a = run.normalize({"kind": "analysis", "analysis": "ie_decomposition", "surface": "sombrero2",
+                       "zenith": 45, "count": 8, "size": 24, "noise": 0.0})
+    row = run.execute(a, sweep="x")
+    assert row["status"] == "ok", row.get("traceback")
+    payload = pd.DataFrame(json.loads(row["payload"]))
+    assert set(payload["source_zenith"]) == {45.0}          # the run's zenith is passed
+    bad = run.execute(run.normalize({"kind": "analysis", "analysis": "nope"}), sweep="x")
+    assert bad["status"] == "failed" and "ie_decomposition" in bad["error"]

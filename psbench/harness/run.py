@@ -429,9 +429,15 @@ def _analysis(p):
     fn = _analysis_fn(p["analysis"])
     sig = inspect.signature(fn)
     has_kw = any(q.kind == q.VAR_KEYWORD for q in sig.parameters.values())
-    kwargs = {k: v for k, v in p.items()
-              if k not in ("kind", "analysis", "args", "extras") and v is not None
-              and (has_kw or k in sig.parameters)}
+    cand = {k: v for k, v in p.items()
+            if k not in ("kind", "analysis", "args", "extras") and v is not None}
+    derived = {}
+    _layout_fields(p, derived)                 # zenith, count of a single ring
+    cand.update({k: derived[k] for k in ("zenith", "count") if k in derived})
+    kwargs = {k: v for k, v in cand.items() if has_kw or k in sig.parameters}
+    for name in sig.parameters:                # plural parameters: zeniths=[zenith], ...
+        if name not in kwargs and name.endswith("s") and name[:-1] in cand:
+            kwargs[name] = [cand[name[:-1]]]
     kwargs.update(p["args"])
     return {"payload": _json(fn(**kwargs))}
 

@@ -42,13 +42,13 @@ def plan(runs, *, root, sweep, rerun=False, retry_failed=False):
 
 
 def make_chunks(runs, *, workers=1, target=None):
-    """Group runs by scene (never split a group) and pack groups into chunks of about
-    ``target`` runs (default: total / (4 * workers), at least 1)."""
+    """Group runs by scene (never split a group) and pack small groups into chunks of
+    about ``target`` runs (default: total / (4 * workers), between 1 and 16)."""
     groups = {}
     for p in runs:
         groups.setdefault(scene_key(p), []).append(p)
     if target is None:
-        target = max(1, math.ceil(len(runs) / (4 * max(1, workers))))
+        target = max(1, min(16, math.ceil(len(runs) / (4 * max(1, workers)))))
     chunks, cur = [], []
     for key in sorted(groups):
         cur.extend(groups[key])
