@@ -193,8 +193,12 @@ def build_experiment(name, df, out, scale, messages):
     return summary, verdicts
 
 
-def build(results="results", out="reports", scale="full", panels=False, log=print) -> Path:
-    """Rebuild the report folder; returns the path of ``index.html``."""
+def build(results="results", out="reports", scale="full", panels=False, log=print,
+          experiments=None) -> Path:
+    """Rebuild the report folder; returns the path of ``index.html``.
+
+    ``experiments`` restricts the pages to a subset of :data:`tables.EXPERIMENTS`.
+    """
     import psbench
 
     out = Path(out)
@@ -203,7 +207,8 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     for m in messages:
         log(f"warning: {m}")
     summaries, all_verdicts = [], []
-    for name in T.EXPERIMENTS:
+    names = [n for n in T.EXPERIMENTS if experiments is None or n in experiments]
+    for name in names:
         s, vs = build_experiment(name, df, out, scale, messages)
         summaries.append(s)
         all_verdicts.extend(vs)
@@ -254,7 +259,7 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         for s in summaries])
     blocks.append(("table", tab))
     blocks += [("h2", "Pages"),
-               ("links", [(f"{n}.html", f"{t} ({n})") for n, t in T.EXPERIMENTS.items()])]
+               ("links", [(f"{n}.html", f"{T.EXPERIMENTS[n]} ({n})") for n in names])]
     if panel_files:
         blocks += [("h2", "Image panels (one small scene rendered and solved by "
                           "psbench-report --panels, not from the store)"),

@@ -228,7 +228,7 @@ FIGURES = {k[4:]: v for k, v in globals().items() if k.startswith("fig_")}
 def figures(experiment, agg):
     """``[(stem, Figure)]`` for one experiment, and a list of error messages."""
     fn = FIGURES.get(experiment)
-    if fn is None:
+    if fn is None or agg is None or agg.empty:
         return [], []
     try:
         return fn(agg), []

@@ -42,8 +42,11 @@ def write_atomic(path, data) -> Path:
     return path
 
 
-def save_figure(fig, path, dpi=80) -> Path:
-    """Save a matplotlib figure as PNG atomically and close it."""
+def save_figure(fig, path, dpi=80, palette=False) -> Path:
+    """Save a matplotlib figure as PNG atomically and close it.
+
+    ``palette=True`` stores a 256-colour palette PNG (much smaller for image panels).
+    """
     import io
 
     import matplotlib.pyplot as plt
@@ -51,7 +54,18 @@ def save_figure(fig, path, dpi=80) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
-    return write_atomic(path, buf.getvalue())
+    data = buf.getvalue()
+    if palette:
+        try:
+            from PIL import Image
+
+            img = Image.open(io.BytesIO(data)).convert("RGB").quantize(colors=256)
+            out = io.BytesIO()
+            img.save(out, format="PNG", optimize=True)
+            data = out.getvalue()
+        except Exception:  # noqa: BLE001 - keep the full-colour PNG
+            pass
+    return write_atomic(path, data)
 
 
 def _cell(v) -> str:

@@ -672,7 +672,17 @@ def compare(experiment: str, agg: pd.DataFrame) -> pd.DataFrame:
     for f in (th, ps):
         for c in ("part", "row", "column"):
             f[c] = f[c].astype(str)
-    out = pd.merge(ps, th, on=["part", "row", "column"], how="outer")
+    out = pd.merge(ps, th, on=["part", "row", "column"], how="outer", sort=False)
+    # thesis order first (parts, rows, columns as printed), then psbench's extra cells
+    order = {}
+    for f in (th, ps):
+        for c in ("part", "row", "column"):
+            for v in f[c]:
+                order.setdefault((c, v), len(order))
+    out = out.assign(_p=out["part"].map(lambda v: order[("part", v)]),
+                     _r=out["row"].map(lambda v: order[("row", v)]),
+                     _c=out["column"].map(lambda v: order[("column", v)]))
+    out = out.sort_values(["_p", "_r", "_c"], kind="stable").drop(columns=["_p", "_r", "_c"])
     out["psbench"] = pd.to_numeric(out["psbench"], errors="coerce")
     out["thesis"] = pd.to_numeric(out["thesis"], errors="coerce")
     out["diff"] = out["psbench"] - out["thesis"]
