@@ -160,7 +160,7 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
             continue  # zenith 0: no cast shadows
         t = dz / rxy
         rise = hmax - hmin - bias
-        if rise <= 0 or rise / t < 1e-3:
+        if rise <= 0 or rise < 1e-3 * t:
             continue  # no occluder can rise above the ray within reach of any point
         out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, int(oversample))
     if mask is not None or not finite.all():
@@ -195,7 +195,7 @@ def _one(h, hb, hpad, ux, uy, t, over=1):
     # +1 for the floor ring around the source
     fwd = F.copy()
     fwd[:, 2] += 1.0 - F[:, 1]
-    big = T * (L + 1) > 2e5  # g = h + T rho loses float32 precision for steep lights
+    big = T * (L + 1) > 5e4  # g = h + T rho loses float32 precision for steep lights
     dtype = np.float64 if big else np.float32
     src = hpad.astype(dtype) if big else hpad
     g = cv2.warpAffine(src, fwd, (nq, L + 1), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,

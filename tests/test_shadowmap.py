@@ -203,6 +203,14 @@ def test_near_vertical_light_uses_enough_precision():
         (sm != ray_march(h, d, bias=0.5, step=0.25)).sum() <= 2
 
 
+def test_horizon_light():
+    # light at zenith 90 (t = 0): anything higher beyond the point shadows it
+    h = np.zeros((16, 32), np.float32)
+    h[:, 20] = 1.0
+    sm = shadow_map(h, [1.0, 0.0, 0.0], bias=0.5)[0]
+    assert sm[:, :20].all() and not sm[:, 20:].any()
+
+
 @pytest.mark.parametrize("kwargs,match", [
     (dict(height=np.zeros((4, 4, 2))), "height"),
     (dict(directions=[[0, 0, 1, 0]]), "directions"),
