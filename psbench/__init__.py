@@ -2,49 +2,40 @@
 
 Public API (see README): ``make_surface``, ``surface_from_height``, ``layout``,
 ``render``, ``solve``, ``normal_error``, ``intensity_error``, ``quality_factor``,
-``integrate``, ``cond`` and the ``io`` module. Names are imported lazily so that
-``import psbench`` stays fast.
+``integrate``, ``cond`` and the ``io`` module.
+
+The core functions are imported eagerly: ``render``, ``solve`` and ``integrate`` share
+their names with the modules that define them, and a lazy export would be shadowed by
+the submodule as soon as it is imported. The heavier real-image modules (``io``,
+``calibrate``, ``capture``, ``analysis``) load on first use.
 """
 from __future__ import annotations
 
 import importlib
 
 from ._checks import PsbenchError
+from .integrate import integrate
+from .lights import Layout, cond, layout
+from .metrics import (intensity_error, normal_error, normal_error_map, normal_error_stats,
+                      quality_factor)
+from .render import Scene, render
+from .shadowmap import shadow_map
+from .solve import Result, solve
+from .surfaces import SURFACES, Surface, make_surface, surface_from_file, surface_from_height
 
 __version__ = "0.1.0"
 
-_EXPORTS = {
-    "make_surface": "psbench.surfaces",
-    "surface_from_height": "psbench.surfaces",
-    "surface_from_file": "psbench.surfaces",
-    "Surface": "psbench.surfaces",
-    "SURFACES": "psbench.surfaces",
-    "layout": "psbench.lights",
-    "Layout": "psbench.lights",
-    "cond": "psbench.lights",
-    "render": "psbench.render",
-    "Scene": "psbench.render",
-    "shadow_map": "psbench.shadowmap",
-    "solve": "psbench.solve",
-    "Result": "psbench.solve",
-    "normal_error": "psbench.metrics",
-    "normal_error_stats": "psbench.metrics",
-    "intensity_error": "psbench.metrics",
-    "quality_factor": "psbench.metrics",
-    "integrate": "psbench.integrate",
-}
-_MODULES = {"io", "calibrate", "capture", "metrics", "surfaces", "lights", "render",
-            "shadowmap", "integrate", "analysis"}
+_LAZY = {"io", "calibrate", "capture", "analysis", "harness", "report"}
 
-__all__ = sorted(_EXPORTS) + sorted(_MODULES) + ["PsbenchError", "__version__"]
+__all__ = ["PsbenchError", "__version__", "integrate", "Layout", "cond", "layout",
+           "intensity_error", "normal_error", "normal_error_map", "normal_error_stats",
+           "quality_factor", "Scene", "render", "shadow_map", "Result", "solve", "SURFACES",
+           "Surface", "make_surface", "surface_from_file", "surface_from_height",
+           *sorted(_LAZY)]
 
 
 def __getattr__(name):
-    if name in _EXPORTS:
-        value = getattr(importlib.import_module(_EXPORTS[name]), name)
-        globals()[name] = value
-        return value
-    if name in _MODULES:
+    if name in _LAZY:
         mod = importlib.import_module(f"psbench.{name}")
         globals()[name] = mod
         return mod
