@@ -195,8 +195,11 @@ def fig_table5_5(agg):
         return []
     fig, axes = _fig(ncols=2, w=4.2)
     for r in tv.T55_ROWS:
-        _line(axes[0], agg, "ne", r)
-    _finish(axes[0], "image count n_i", "NE (deg)", "Hi-Sh (Table 5.5)")
+        s = _line(axes[0], agg, "ne", r)
+        color = axes[0].lines[-1].get_color() if len(s) else None
+        axes[0].plot(tv.T55_COUNTS, [tv.value("table5_5", "ne", r, str(n)) for n in tv.T55_COUNTS],
+                     ls="--", lw=0.8, alpha=0.6, color=color)
+    _finish(axes[0], "image count n_i", "NE (deg)", "Hi-Sh (Table 5.5; dashed = thesis)")
     for r in ("1Z/None", "2Z/None"):
         _line(axes[1], agg, "di", r)
     _finish(axes[1], "image count n_i", "NE (deg)", "Di (Fig. 5.22)")
