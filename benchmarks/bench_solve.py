@@ -12,7 +12,12 @@ Intel Core 2 Quad, images of 512 x 512; a context figure, not a like-for-like
 comparison). ``--big`` runs weighted Th-Hi-Re-Sh once at that size in a subprocess
 and reports its time and peak RSS (``resource.getrusage(RUSAGE_CHILDREN)``).
 
-The machine is shared: figures are noisy, compare ratios rather than absolutes.
+The machine is shared: figures are noisy, compare ratios rather than absolutes; the
+process CPU time column is the steadier figure. ``--blas-threads`` (default 1) sets
+OPENBLAS_NUM_THREADS/OMP_NUM_THREADS before numpy loads: on a machine shared by many
+busy processes multi-threaded OpenBLAS makes the small (k x 3) products of PS up to
+100x slower in median wall time (threads spin waiting for cores), single-threaded it
+does not.
 """
 from __future__ import annotations
 
@@ -25,10 +30,26 @@ import sys
 import tempfile
 import time
 
-import numpy as np
 
-import psbench as ps
-from psbench.solve import solve
+def _blas_threads(argv):
+    n = "1"
+    for i, a in enumerate(argv):
+        if a == "--blas-threads" and i + 1 < len(argv):
+            n = argv[i + 1]
+        elif a.startswith("--blas-threads="):
+            n = a.split("=", 1)[1]
+    if n != "0":  # 0: leave the library defaults
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ[var] = n
+    return n
+
+
+BLAS_THREADS = _blas_threads(sys.argv) if __name__ == "__main__" else None
+
+import numpy as np  # noqa: E402
+
+import psbench as ps  # noqa: E402
+from psbench.solve import solve  # noqa: E402
 
 # mask, lights, target seconds, Matlab seconds (Table 5.3)
 CASES = [
@@ -87,7 +108,8 @@ def bench(size=512, runs=5, surface="sombrero"):
                      float(np.min(ts)), float(np.median(cpu))))
     print(f"\npsbench.solve at {size}x{size}, surface {surface}, TS with shadows, "
           f"median of {runs} runs (ms)")
-    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores, "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'default')}")
     print(f"{'mask':14s} {'lights':10s} {'median':>9s} {'min':>8s} {'cpu':>8s} {'xNone':>6s} "
           f"{'target':>7s} {'ok':>3s} {'Matlab':>7s} {'speedup':>8s} {'NE deg':>7s} {'iter':>4s}")
     for mask, lights, med, ratio, target, matlab, ne, it, mn, cpu in rows:
@@ -129,6 +151,8 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--big", type=int, default=2048, help="size of the memory run (0: skip)")
     ap.add_argument("--surface", default="sombrero")
+    ap.add_argument("--blas-threads", default="1",
+                    help="BLAS threads (set before numpy loads; 0 = library default)")
     a = ap.parse_args(argv)
     bench(a.size, max(5, a.runs), a.surface)
     if a.big:
