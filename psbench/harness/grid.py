@@ -26,7 +26,7 @@ import itertools
 from .._checks import PsbenchError
 from .run import PARAMS, normalize, run_id
 
-__all__ = ["expand", "experiment_spec"]
+__all__ = ["expand", "experiment_spec", "available"]
 
 _LIST_PARAMS = ("extras",)   # list-valued parameters: a flat list is ONE value
 _DICT_PARAMS = ("thresholds", "args")
@@ -37,6 +37,9 @@ def experiment_spec(exp) -> dict:
     from .run import _plain
 
     exp = _plain(exp)
+    if isinstance(exp, str):
+        raise PsbenchError(f"experiment={exp!r}: select an experiment config with "
+                           f"+experiment={exp} (available: {', '.join(available()) or 'none'})")
     if not isinstance(exp, dict):
         raise PsbenchError(f"experiment must be a mapping with name/grids, got {exp!r}")
     unknown = set(exp) - {"name", "description", "grids", "fixed", "scales", "kind"}
@@ -54,6 +57,20 @@ def experiment_spec(exp) -> dict:
     exp["fixed"] = exp.get("fixed") or {}
     exp["scales"] = exp.get("scales") or {}
     return exp
+
+
+def available() -> list[str]:
+    """Names of the experiment configs shipped in ``psbench.conf`` (``conf/experiment``)."""
+    try:
+        from importlib import resources
+
+        d = resources.files("psbench.conf") / "experiment"
+        return sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml"))
+    except Exception:  # noqa: BLE001 - fall back to the source tree
+        from pathlib import Path
+
+        d = Path(__file__).resolve().parents[2] / "conf" / "experiment"
+        return sorted(p.stem for p in d.glob("*.yaml"))
 
 
 def _axis(key, value):

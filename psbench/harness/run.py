@@ -342,6 +342,15 @@ class _Scene:
             self.images, self.lights, self.mask = scene.images, lay, surf.mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
+        self._dr = None
+
+    def dynamic_range(self):
+        """Mean image range over the object (cached: shared by the scene's runs)."""
+        if self._dr is None:
+            from ..metrics import dynamic_range
+
+            self._dr = dynamic_range(self.images, self.mask)
+        return self._dr
 
 
 def select_lights(images, lights, spec):
@@ -415,9 +424,7 @@ def _solve_metrics(p, sc):
             row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, sc.mask))
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
-    from ..metrics import dynamic_range
-
-    dr = dynamic_range(sc.images, sc.mask)
+    dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):
         qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, sc.mask)

@@ -72,16 +72,25 @@ def split_shards(chunks, shards):
     return [s for s in out if s]
 
 
-def run_shard(chunks, *, root, sweep, experiment=None):
-    """Run chunks one after the other in this process (a shard job's body)."""
-    out = []
-    for c in chunks:
-        out.extend(run_chunk(c, root=root, sweep=sweep, experiment=experiment))
-    return out
+def run_shard(chunks, *, root, sweep, experiment=None, jobs=1):
+    """A shard job's body: run chunks in this job (``jobs`` joblib workers, 1 = in-process)."""
+    if _n_workers(jobs) == 1 or len(chunks) == 1:
+        out = []
+        for c in chunks:
+            out.extend(run_chunk(c, root=root, sweep=sweep, experiment=experiment))
+        return out
+    from joblib import Parallel, delayed
+
+    res = Parallel(n_jobs=int(jobs))(
+        delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment) for c in chunks)
+    return [r for part in res for r in part]
 
 
 def _n_workers(jobs):
-    n = os.cpu_count() or 1
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        n = os.cpu_count() or 1
     jobs = int(jobs)
     return n if jobs == -1 else max(1, n + 1 + jobs if jobs < 0 else jobs)
 
@@ -121,18 +130,40 @@ def _executor(launcher, folder, params):
     return ex
 
 
-def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder, params, wait):
+def _written(root, sweep, ids, since):
+    """How many of the runs ``ids`` have a per-run file written since ``since``."""
+    from .store import run_path
+
+    n = 0
+    for rid in ids:
+        try:
+            n += run_path(root, sweep, rid).stat().st_mtime >= since
+        except OSError:
+            pass
+    return n
+
+
+def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder, params, wait,
+              jobs=1):
     shard_lists = split_shards(chunks, shards)
     ex = _executor(launcher, folder, params)
-    jobs = [ex.submit(run_shard, s, root=str(root), sweep=sweep, experiment=experiment)
-            for s in shard_lists]
+    ids = [run_id(p) for c in chunks for p in c]
+    since = time.time() - 1.0
+    jobs = [ex.submit(run_shard, s, root=str(root), sweep=sweep, experiment=experiment,
+                      jobs=jobs) for s in shard_lists]
     ids = ", ".join(str(j.job_id) for j in jobs)
     prog.stream.write(f"submitted {len(jobs)} shard job(s) with {launcher} ({ids}); logs in "
                       f"{folder}\n")
     if not wait:
         return None
     results, pending = [], list(jobs)
+    last_poll = 0.0
     while pending:
+        if time.time() - last_poll > 2.0:          # progress from the store, run by run
+            last_poll = time.time()
+            n = _written(root, sweep, ids, since)
+            if n > prog.done:
+                prog.update(n - prog.done)
         for j in list(pending):
             if j.done():
                 pending.remove(j)
@@ -142,8 +173,11 @@ def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder
                     prog.stream.write(f"shard job {j.job_id} failed: {type(exc).__name__}: "
                                       f"{str(exc)[:500]}\n")
                     continue
-                prog.update(len(res), sum(r["status"] != "ok" for r in res))
                 results.extend(res)
+                n_done = len(results)
+                prog.failed = sum(r["status"] != "ok" for r in results)
+                if n_done > prog.done:
+                    prog.update(n_done - prog.done)
         if pending:
             time.sleep(0.5)
     return results
@@ -181,7 +215,9 @@ def execute_runs(runs, *, root, sweep, experiment=None, rerun=False, retry_faile
             chunks = make_chunks(todo, workers=max(1, int(shards)))
             results = _submitit(chunks, prog, launcher=launcher, shards=shards, root=root,
                                 sweep=sweep, experiment=experiment, folder=folder,
-                                params=sub, wait=wait)
+                                params=sub, wait=wait,
+                                # local shards share this machine: one process each
+                                jobs=1 if launcher != "submitit_slurm" and jobs == -1 else jobs)
     prog.close()
     ok = None if results is None else sum(r["status"] == "ok" for r in results)
     failed = None if results is None else sum(r["status"] != "ok" for r in results)
