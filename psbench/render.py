@@ -26,7 +26,7 @@ import numpy as np
 
 from ._checks import PsbenchError, choice
 from .lights import Layout, layout
-from .shadowmap import shadow_map
+from .shadowmap import point_shadow_map, shadow_map
 
 __all__ = ["render", "Scene", "MODELS", "SHADOWS"]
 
@@ -192,8 +192,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         per pixel from the surface point to the light. Default: ``lights.positions``
         if the layout has them, else distant lights. The returned layout's
         directions are those from the image centre (height 0) to each light.
-        Cast shadows of near lights use that central direction (parallel-ray
-        approximation); self shadows and shading are exact per pixel.
+        Shading, self shadows and cast shadows (:func:`psbench.shadowmap.point_shadow_map`,
+        a perspective shadow map around the light's foot point) are per pixel.
     falloff : bool, default False
         Near lights only: multiply by (d0 / |L - p|)^2, d0 = |L| (distance to the
         image centre at height 0), so that point gets power mu.
@@ -204,8 +204,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         simplification of Section 5.2.2.2: depth variation << distance).
         f must exceed the highest surface point. None: v = (0, 0, 1).
     shadow_bias : float, default 0.05
-        ``bias`` passed to :func:`psbench.shadowmap.shadow_map` (pixel-height units;
-        the rendered heights are exact, so it is small).
+        ``bias`` passed to :func:`psbench.shadowmap.shadow_map` /
+        :func:`~psbench.shadowmap.point_shadow_map` (pixel-height units; the
+        rendered heights are exact, so it is small).
 
     Returns
     -------
@@ -268,7 +269,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
                      pos, bool(falloff), perspective)
     occluded = None
     if cast:
-        occluded = shadow_map(height, lay.directions, bias=shadow_bias)
+        occluded = (shadow_map(height, lay.directions, bias=shadow_bias) if pos is None else
+                    point_shadow_map(height, pos, bias=shadow_bias))
 
     images = np.empty((k, H, W), dtype=np.float32)
     highlight = np.zeros((k, H, W), dtype=bool)

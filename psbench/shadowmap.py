@@ -45,7 +45,7 @@ import numpy as np
 
 from ._checks import PsbenchError
 
-__all__ = ["shadow_map", "light_directions"]
+__all__ = ["shadow_map", "point_shadow_map", "light_directions"]
 
 #: value given to rotated samples outside the image: "nothing there"
 _FLOOR = np.float32(-1e30)
@@ -115,38 +115,13 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
     Beyond the image border there is nothing: rays leaving the image are not
     occluded. See the module docstring for the definition and the algorithm.
     """
-    h = np.asarray(height)
-    if h.ndim != 2 or not np.issubdtype(h.dtype, np.number) or h.dtype == bool:
-        raise PsbenchError(f"height must be a numeric (H, W) array, got shape {h.shape} dtype {h.dtype}")
-    H, W = h.shape
-    if H < 1 or W < 1:
-        raise PsbenchError(f"height must not be empty, got shape {h.shape}")
     d = light_directions(directions)
-    bias = float(bias)
-    if not np.isfinite(bias) or bias < 0:
-        raise PsbenchError(f"bias must be a finite number >= 0 (pixel-height units), got {bias}")
-    if isinstance(oversample, (bool, np.bool_)) or not isinstance(oversample, (int, np.integer)) \
-            or not 1 <= int(oversample) <= 4:
-        raise PsbenchError(f"oversample must be an integer in 1..4, got {oversample!r}")
-    h = h.astype(np.float32)
-    finite = np.isfinite(h)
-    inside = finite
-    if mask is not None:
-        m = np.asarray(mask)
-        if m.shape != (H, W):
-            raise PsbenchError(f"mask must have shape {(H, W)}, got {m.shape}")
-        inside = finite & m.astype(bool)
+    _check_oversample(oversample)
+    h, inside, bias = _prepare(height, mask, bias, background)
+    H, W = np.shape(height)
     out = np.zeros((d.shape[0], H, W), dtype=bool)
-    if not inside.any():
+    if h is None:
         return out
-    if not inside.all():
-        if background is None:
-            bg = float(h[inside].min())
-        else:
-            bg = float(background)
-            if not np.isfinite(bg):
-                raise PsbenchError(f"background must be finite, got {background}")
-        h = np.where(inside, h, np.float32(bg)).astype(np.float32)
     hmin, hmax = float(h.min()), float(h.max())
     # a one-pixel ring of "nothing" that BORDER_REPLICATE extends to infinity: samples
     # between the last pixel and the ring fade to the floor, so nothing exists
@@ -163,9 +138,53 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
         if rise <= 0 or rise < 1e-3 * t:
             continue  # no occluder can rise above the ray within reach of any point
         out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, int(oversample))
-    if mask is not None or not finite.all():
+    if inside is not None:
         out &= inside[None]
     return out
+
+
+def _check_oversample(oversample):
+    if isinstance(oversample, (bool, np.bool_)) or not isinstance(oversample, (int, np.integer)) \
+            or not 1 <= int(oversample) <= 4:
+        raise PsbenchError(f"oversample must be an integer in 1..4, got {oversample!r}")
+
+
+def _prepare(height, mask, bias, background):
+    """Validate; return (float32 heights with the background applied or None when no
+    pixel is inside, inside mask or None when every pixel is inside, bias)."""
+    h = np.asarray(height)
+    if h.ndim != 2 or not np.issubdtype(h.dtype, np.number) or h.dtype == bool:
+        raise PsbenchError(f"height must be a numeric (H, W) array, got shape {h.shape} dtype {h.dtype}")
+    H, W = h.shape
+    if H < 1 or W < 1:
+        raise PsbenchError(f"height must not be empty, got shape {h.shape}")
+    try:
+        bias = float(bias)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"bias must be a number >= 0 (pixel-height units), got {bias!r}") from None
+    if not np.isfinite(bias) or bias < 0:
+        raise PsbenchError(f"bias must be a finite number >= 0 (pixel-height units), got {bias}")
+    h = h.astype(np.float32)
+    inside = np.isfinite(h)
+    if mask is not None:
+        m = np.asarray(mask)
+        if m.shape != (H, W):
+            raise PsbenchError(f"mask must have shape {(H, W)}, got {m.shape}")
+        inside &= m.astype(bool)
+    if not inside.any():
+        return None, inside, bias
+    if inside.all():
+        return h, None, bias
+    if background is None:
+        bg = float(h[inside].min())
+    else:
+        try:
+            bg = float(background)
+        except (TypeError, ValueError):
+            bg = float("nan")
+        if not np.isfinite(bg):
+            raise PsbenchError(f"background must be a finite number, got {background!r}")
+    return np.where(inside, h, np.float32(bg)).astype(np.float32), inside, bias
 
 
 def _one(h, hb, hpad, ux, uy, t, over=1):
@@ -212,3 +231,120 @@ def _one(h, hb, hpad, ux, uy, t, over=1):
     thr = hb.astype(dtype, copy=False) + rowpart[:, None]
     thr += colpart[None, :]
     return horizon > thr
+
+
+def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
+                     oversample=1):
+    """Cast-shadow maps of a height field for near point lights.
+
+    Parameters
+    ----------
+    height : (H, W) array_like
+        Heights in pixel units.
+    positions : (k, 3) or (3,) array_like
+        Light positions in pixel units: origin at the image centre on the height
+        datum, x right, y up, z up (psbench's frame).
+    mask, bias, background
+        As in :func:`shadow_map`.
+    oversample : int, default 1
+        Angular samples per pixel of arc at the farthest image point (1..4).
+
+    Returns
+    -------
+    shadow : (k, H, W) bool
+        True where the segment from the point to the light passes more than
+        ``bias`` below the (bilinear) height field.
+
+    Notes
+    -----
+    A perspective shadow map: around the light's foot point F (its projection on
+    the image plane), the rays from the surface to the light are radial lines.
+    Seen from the light L, a point q hides p (further out on the same radial line)
+    when its depression slope ``sigma(q) = (L_z - h(q) + bias) / |q - F|`` is smaller
+    than ``(L_z - h(p)) / |p - F|``. The height map is resampled on a polar grid
+    around F (``cv2.remap``, bilinear, angle chunks), a running minimum of sigma
+    runs outwards, and it is sampled back one radial step nearer the light.
+    """
+    h, inside, bias = _prepare(height, mask, bias, background)
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim == 1:
+        pos = pos[None, :]
+    if pos.ndim != 2 or pos.shape[1] != 3 or not np.isfinite(pos).all():
+        raise PsbenchError(f"positions must be a finite (k, 3) array, got shape {np.shape(positions)}")
+    _check_oversample(oversample)
+    H, W = np.shape(height)
+    out = np.zeros((pos.shape[0], H, W), dtype=bool)
+    if h is None:
+        return out
+    hpad = cv2.copyMakeBorder(h, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=float(_FLOOR))
+    for i, L in enumerate(pos):
+        out[i] = _one_point(h, hpad, L, float(bias), int(oversample))
+    if inside is not None:
+        out &= inside[None]
+    return out
+
+
+def _one_point(h, hpad, L, bias, over):
+    H, W = h.shape
+    c0, r0 = (W - 1) / 2.0, (H - 1) / 2.0
+    fc, fr = L[0] + c0, r0 - L[1]  # foot point in (col, row)
+    Lz = L[2]
+    # polar extent of the image rectangle (grown by a pixel) seen from the foot
+    xs = np.array([-1.0, W, W, -1.0]) - fc
+    ys = np.array([-1.0, -1.0, H, H]) - fr
+    rho_max = float(np.hypot(xs, ys).max())
+    inside_rect = -1.0 <= fc <= W and -1.0 <= fr <= H
+    if inside_rect:
+        rho0, phi0, span = 0.0, -np.pi, 2 * np.pi
+    else:
+        dxr = min(max(fc, -1.0), float(W)) - fc
+        dyr = min(max(fr, -1.0), float(H)) - fr
+        rho0 = max(float(np.hypot(dxr, dyr)) - 2.0, 0.0)
+        pc = np.arctan2(r0 - fr, c0 - fc)
+        rel = (np.arctan2(ys, xs) - pc + np.pi) % (2 * np.pi) - np.pi
+        phi0, span = pc + rel.min(), float(rel.max() - rel.min())
+    n_rad = int(np.ceil(rho_max - rho0)) + 3
+    n_ang = min(int(np.ceil(span * rho_max * over)) + 3, 32000)  # cv2.remap limit
+    dphi = span / (n_ang - 3) if not inside_rect else span / (n_ang - 1)
+    rho = (rho0 + np.arange(n_rad, dtype=np.float64)).astype(np.float32)  # radial step 1 px
+    with np.errstate(divide="ignore"):
+        inv_rho = (1.0 / rho)[:, None]
+    sig = np.empty((n_rad, n_ang), dtype=np.float32)
+    step = max(1, (1 << 21) // n_rad)
+    top = np.float32(Lz + bias)
+    for a in range(0, n_ang, step):
+        phi = phi0 + dphi * (np.arange(a, min(n_ang, a + step), dtype=np.float64)
+                             - (0.0 if inside_rect else 1.0))  # margin column if outside
+        mx = rho[:, None] * np.cos(phi).astype(np.float32)[None, :]
+        mx += np.float32(fc + 1.0)
+        my = rho[:, None] * np.sin(phi).astype(np.float32)[None, :]
+        my += np.float32(fr + 1.0)
+        hs = cv2.remap(hpad, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        nothing = hs <= np.float32(_FLOOR * 0.5)
+        np.subtract(top, hs, out=hs)
+        hs *= inv_rho
+        if rho[0] == 0:
+            hs[0] = np.inf
+        np.copyto(hs, np.float32(np.inf), where=nothing)
+        sig[:, a:a + hs.shape[1]] = hs
+    for r in range(1, n_rad):  # running minimum outwards
+        np.minimum(sig[r], sig[r - 1], out=sig[r])
+    if inside_rect:  # close the circle for interpolation across phi = +-pi
+        sig = np.concatenate([sig, sig[:, :1]], axis=1)
+    dx = (np.arange(W, dtype=np.float32) - np.float32(fc))[None, :]
+    dy = (np.arange(H, dtype=np.float32) - np.float32(fr))[:, None]
+    rp = np.sqrt(dx * dx + dy * dy)
+    ph = np.arctan2(np.broadcast_to(dy, (H, W)), np.broadcast_to(dx, (H, W)))
+    if inside_rect:
+        ja = (ph - np.float32(phi0)) / np.float32(dphi)
+    else:
+        ph -= np.float32(phi0)
+        ph += np.float32(np.pi)
+        np.remainder(ph, np.float32(2 * np.pi), out=ph)
+        ph -= np.float32(np.pi)
+        ja = ph / np.float32(dphi) + np.float32(1.0)
+    jr = rp - np.float32(rho0 + 1.0)  # one radial step nearer the light: points before p
+    horizon = cv2.remap(sig, ja, jr, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        own = (np.float32(Lz) - h) / rp
+    return (horizon < own) & (rp >= 1.0)

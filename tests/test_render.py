@@ -277,6 +277,21 @@ def test_near_light_falloff_darkens_away_from_light():
                                                   model="lambert").images, atol=1e-4)
 
 
+def test_near_light_cast_shadows():
+    surf = pillar(64, 6, 20.0)
+    pos = np.array([[0.0, 0.0, 200.0], [25.0, 0.0, 60.0], [0.0, -25.0, 60.0]])
+    sc = render(surf, "45x3", model="lambert", light_positions=pos)
+    # directly above: no cast shadow beyond the top; to the side: shadows point away
+    assert sc.cast_shadow[0].sum() == 0
+    cs = sc.cast_shadow[1]  # light to the right: shadow to the left of the pillar
+    assert cs.sum() > 100 and np.argwhere(cs)[:, 1].mean() < 26 and not cs[:, 40:].any()
+    cs = sc.cast_shadow[2]  # light below (y < 0): shadow above the pillar
+    assert cs.sum() > 100 and np.argwhere(cs)[:, 0].mean() < 26 and not cs[40:].any()
+    assert (sc.images[sc.cast_shadow] == 0).all()
+    from psbench.shadowmap import point_shadow_map
+    assert np.array_equal(sc.cast_shadow, point_shadow_map(surf.height, pos, bias=0.05))
+
+
 def test_perspective_view_vector():
     surf = hemisphere(64, 28.0)
     ortho = render(surf, "45x4")

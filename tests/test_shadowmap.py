@@ -6,7 +6,7 @@ import pytest
 
 from psbench import PsbenchError
 from psbench.lights import layout
-from psbench.shadowmap import shadow_map
+from psbench.shadowmap import point_shadow_map, shadow_map
 
 
 # ---------------------------------------------------------------- test surfaces
@@ -106,6 +106,56 @@ def test_agrees_with_ray_march_on_library_surfaces():
         for i, d in enumerate(dirs):
             agree = (got[i] == ray_march(h, d, bias=0.5)).mean()
             assert agree >= 0.995, f"{name} light {i}: agreement {agree:.4f}"
+
+
+def ray_march_point(h, light, bias=0.5, step=0.1):
+    """Occluded where the segment from the point to the light position (pixel units,
+    origin at the image centre, y up) passes more than ``bias`` below the bilinear
+    height field."""
+    h = h.astype(np.float64)
+    H, W = h.shape
+    rr, cc = np.mgrid[0:H, 0:W].astype(np.float64)
+    fc, fr = light[0] + (W - 1) / 2, (H - 1) / 2 - light[1]
+    dist = np.hypot(fc - cc, fr - rr)
+    occ = np.zeros((H, W), bool)
+    for j in range(1, int(np.ceil(dist.max() / step)) + 1):
+        s = j * step
+        tau = np.minimum(s / np.maximum(dist, 1e-9), 1.0)
+        hq = _bilinear(h, cc + tau * (fc - cc), rr + tau * (fr - rr))
+        occ |= (s < dist) & (hq - bias > h + tau * (light[2] - h))
+    return occ
+
+
+POINTS = [(0, 0, 60.0), (20, -15, 45.0), (100, 30, 90.0), (-120, -160, 110.0), (8, 40, 30.0)]
+
+
+@pytest.mark.parametrize("name,make", [("hemisphere", lambda: hemisphere(64, 20.0)),
+                                       ("bumps", lambda: 0.7 * bumps(64)),
+                                       ("pillar", lambda: pillar(64, 6, 15.3))])
+def test_point_lights_agree_with_ray_march(name, make):
+    h = make()
+    got = point_shadow_map(h, POINTS, bias=0.5, oversample=2)
+    total = 0
+    for i, light in enumerate(POINTS):
+        ref = ray_march_point(h, light, bias=0.5)
+        total += ref.sum()
+        agree = (got[i] == ref).mean()
+        assert agree >= 0.995, f"{name} light {light}: agreement {agree:.4f}"
+    assert total > 500, "the test scene must actually have cast shadows"
+
+
+def test_far_point_light_matches_distant_light():
+    h = bumps(64)
+    d = direction(50, 120)
+    far = point_shadow_map(h, d * 1e5, bias=0.5)[0]
+    assert (far == shadow_map(h, d, bias=0.5)[0]).mean() > 0.998
+
+
+def test_point_light_bad_input():
+    with pytest.raises(PsbenchError, match="positions"):
+        point_shadow_map(np.zeros((8, 8)), [[0, 0]])
+    with pytest.raises(PsbenchError, match="oversample"):
+        point_shadow_map(np.zeros((8, 8)), [0, 0, 5.0], oversample=0)
 
 
 def test_wall_shadow_length_is_exact():
