@@ -234,3 +234,23 @@ def test_solve_extras_and_analysis_rows():
     assert set(payload["source_zenith"]) == {45.0}          # the run's zenith is passed
     bad = run.execute(run.normalize({"kind": "analysis", "analysis": "nope"}), sweep="x")
     assert bad["status"] == "failed" and "ie_decomposition" in bad["error"]
+
+
+def test_results_cli_compact_ls_verify(tmp_path, capsys):
+    from psbench.harness import cli
+
+    for i in range(3):
+        store.write_row(tmp_path, _row(f"r{i}", utc=i))
+    assert cli.main(["ls", "--root", str(tmp_path)]) == 0
+    assert "3" in capsys.readouterr().out
+    assert cli.main(["compact", "--root", str(tmp_path)]) == 0
+    assert "3 rows" in capsys.readouterr().out
+    store.write_row(tmp_path, _row("r1", utc=9))            # re-run after compaction
+    assert cli.main(["verify", "--root", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "stored 2 times" in out and "0 problem" in out
+    (tmp_path / "runs" / "s" / "junk.parquet").write_bytes(b"junk")
+    assert cli.main(["verify", "--root", str(tmp_path)]) == 1
+    assert "junk.parquet" in capsys.readouterr().out
+    with pytest.warns(store.StoreWarning, match="junk.parquet"):
+        assert cli.main(["summary", "--root", str(tmp_path), "--by", "kind"]) == 0
