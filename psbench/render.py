@@ -33,7 +33,7 @@ __all__ = ["render", "Scene", "MODELS", "SHADOWS"]
 #: reflection models
 MODELS = ("lambert", "phong", "ts")
 #: accepted values of ``shadows``
-SHADOWS = (True, False, "all", "self")
+SHADOWS = (True, False, "all", "self", "none")
 #: quantisation bit depths accepted by ``quantize``
 QUANTIZE_BITS = tuple(range(1, 17))
 
@@ -158,12 +158,17 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         ``"ts"`` (Torrance–Sparrow): I = mu [rho_s exp(-m^2 arccos(n_h.n)^2) + rho_d (s.n)],
         n_h = (v + s) / |v + s| (Eq. 2.14–2.15).
         Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow.
-    shadows : {True, "all", False, "self"}
+    shadows : {True, "all", False, "self", "none"}
         True / ``"all"``: self and cast shadows. False / ``"self"``: no cast
         shadows; self-shadowed points (s.n <= 0) are still 0, because light
         cannot be negative, and are still reported in ``self_shadow`` (the two
-        spellings are equivalent; False is what configs use for "diffuse"
-        experiments without cast shadows).
+        spellings are equivalent). ``"none"``: no shadows at all, the
+        mathematical "no shadow" assumption of the optimal-lighting analyses
+        (Section 2.4, Fig. 4.3/4.4 "Di" images): the model is evaluated
+        unclamped, so I = mu rho_d (s.n) (+ specular) may be negative where
+        s.n <= 0; ``self_shadow`` and ``cast_shadow`` are all False. Use it to
+        reproduce noise-only Lambertian NE (e.g. ~1.4 deg for 16 lights at 5 %
+        noise); it is not a physical camera image.
     noise : float, default 0
         Additive zero-mean Gaussian noise, sigma_i = noise * (max_i - min_i) of the
         clean image i over the object mask (0.05 = 5 %). Added on the object only;
@@ -216,8 +221,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         ``.diffuse .specular .clean``. Pixels outside ``surface.mask`` are 0.
     """
     model = choice(model, MODELS, "model")
-    if not (isinstance(shadows, (bool, np.bool_)) or shadows in ("all", "self")):
-        raise PsbenchError(f"shadows={shadows!r} is not known; valid choices: True, False, 'all', 'self'")
+    if not (isinstance(shadows, (bool, np.bool_)) or shadows in ("all", "self", "none")):
+        raise PsbenchError(f"shadows={shadows!r} is not known; valid choices: "
+                           "True, False, 'all', 'self', 'none'")
     cast = bool(shadows) if isinstance(shadows, (bool, np.bool_)) else shadows == "all"
     noise = _nonneg(noise, "noise")
     m = _positive(m, "m")
@@ -266,7 +272,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         perspective = f
 
     shader = _Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
-                     pos, bool(falloff), perspective)
+                     pos, bool(falloff), perspective, clamp=not (isinstance(shadows, str)
+                                                                 and shadows == "none"))
     occluded = None
     if cast:
         occluded = (shadow_map(height, lay.directions, bias=shadow_bias) if pos is None else
@@ -342,8 +349,9 @@ class _Shader:
     """Per-light shading of one surface; float32 (H, W) planes."""
 
     def __init__(self, height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
-                 positions, falloff, perspective):
+                 positions, falloff, perspective, clamp=True):
         self.mask = mask
+        self.clamp = clamp
         self.lay = lay
         self.model = model
         self.rho_d, self.rho_s = rho_d, rho_s
@@ -421,6 +429,8 @@ class _Shader:
             diff *= scale
             if spec is not None:
                 spec *= scale
+        if not self.clamp:  # shadows="none": nothing is dark
+            lit = np.ones_like(lit)
         return diff, spec, lit
 
     def components(self, dark):

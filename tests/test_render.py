@@ -188,6 +188,20 @@ def test_shadow_modes():
     assert np.array_equal(render(surf, "60x4", shadows="all").images, full.images)
 
 
+def test_shadows_none_is_unclamped_linear():
+    surf = hemisphere(64, 30.0)
+    lay = layout("60x8")
+    sc = render(surf, lay, shadows="none", model="lambert")
+    sn = np.einsum("hwc,kc->khw", surf.normals.astype(np.float64), lay.directions)
+    np.testing.assert_allclose(sc.images, sn, atol=2e-6)
+    assert (sc.images < 0).any()
+    assert not sc.self_shadow.any() and not sc.cast_shadow.any()
+    np.testing.assert_allclose(sc.diffuse, sc.images)
+    # every pixel then satisfies Lambert's law: least squares is exact everywhere
+    normals, _ = split(wls(sc.images, lay.S))
+    assert angle_deg(normals, surf.normals).max() < 0.05
+
+
 def test_self_shadow_clamped_without_cast_shadows():
     surf = hemisphere(64, 30.0)
     sc = render(surf, "60x8", shadows=False, model="lambert")
