@@ -153,7 +153,8 @@ def _task(cfg):
     path = write_row(root, row)
     print(f"{format_row(row)} | stored {path}", flush=True)
     if row["status"] != "ok":
-        print(row.get("traceback") or "", file=sys.stderr, flush=True)
+        if not isinstance(exc, PsbenchError):      # a bug or numerical failure: show where
+            print(row.get("traceback") or "", file=sys.stderr, flush=True)
         if not multi:
             _EXIT["code"] = 2 if isinstance(exc, PsbenchError) else 1
     return {"run_id": rid, "status": row["status"], "skipped": False}

@@ -6,7 +6,8 @@ One row per run. Column groups:
   folder: experiment name or ``sweep=`` name), ``experiment`` (or null), ``kind``;
 - parameters (:data:`PARAM_COLUMNS`);
 - metrics (:data:`METRIC_COLUMNS`), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
-  the images' dynamic range, times in seconds, ``peak_mem_mb`` the peak resident set of
+  the images' dynamic range, times in seconds (``t_render``: render or read the images,
+  0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run), ``peak_mem_mb`` the peak resident set of
   the process that ran the run (reset before each run where Linux allows it);
 - payloads: json strings (``ne_by_zenith``, ``payload`` of analysis runs);
 - status: ``status`` ("ok" / "failed"), ``error``, ``traceback`` (last frames);
