@@ -166,9 +166,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         mathematical "no shadow" assumption of the optimal-lighting analyses
         (Section 2.4, Fig. 4.3/4.4 "Di" images): the model is evaluated
         unclamped, so I = mu rho_d (s.n) (+ specular) may be negative where
-        s.n <= 0; ``self_shadow`` and ``cast_shadow`` are all False. Use it to
-        reproduce noise-only Lambertian NE (e.g. ~1.4 deg for 16 lights at 5 %
-        noise); it is not a physical camera image.
+        s.n <= 0; ``self_shadow`` and ``cast_shadow`` are all False. Least
+        squares is then exact up to noise; note the dynamic range (and so the
+        noise sigma) includes the negative values. Not a physical camera image.
     noise : float, default 0
         Additive zero-mean Gaussian noise, sigma_i = noise * (max_i - min_i) of the
         clean image i over the object mask (0.05 = 5 %). Added on the object only;
