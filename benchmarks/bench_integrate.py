@@ -3,7 +3,8 @@
 Run: ``python benchmarks/bench_integrate.py [--repeat 5] [--sizes 512 2048]``.
 Cases: a smooth full-frame surface (no mask: one DCT solve for "poisson") and
 a hemisphere-with-notch under a mask (exact masked CG for "poisson"). Prints
-seconds and the ratio against "poisson-dct" (one DCT solve), the baseline.
+median wall and CPU seconds (CPU summed over threads) and the CPU ratio
+against "poisson-dct" (one DCT solve), the baseline.
 The machine is shared: figures are noisy; compare ratios, not absolutes.
 """
 from __future__ import annotations
@@ -42,13 +43,15 @@ def case(N, masked, seed=0):
 
 
 def bench(fn, repeat):
+    """Median wall and CPU (all threads) seconds; CPU time is less sensitive to load."""
     fn()  # warm-up (FFT plans, imports)
-    ts = []
+    wall, cpu = [], []
     for _ in range(repeat):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    return float(np.median(wall)), float(np.median(cpu))
 
 
 def main(argv=None):
@@ -58,7 +61,7 @@ def main(argv=None):
     ap.add_argument("--sparse", action="store_true", help="also time poisson-sparse (slow)")
     a = ap.parse_args(argv)
     methods = ["poisson-dct", "poisson", "fc"] + (["poisson-sparse"] if a.sparse else [])
-    print(f"{'size':>6} {'case':>8} {'method':>15} {'median s':>10} {'x dct':>7}")
+    print(f"{'size':>6} {'case':>8} {'method':>15} {'wall s':>9} {'cpu s':>9} {'x dct':>7}")
     for N in a.sizes:
         for masked in (False, True):
             n, m = case(N, masked)
@@ -67,10 +70,10 @@ def main(argv=None):
                 if meth == "poisson-sparse" and N > 1024:
                     continue
                 rep = 1 if meth == "poisson-sparse" else a.repeat
-                t = bench(lambda: integrate(n, m, method=meth), rep)
-                base = t if base is None else base
-                print(f"{N:>6} {'masked' if masked else 'full':>8} {meth:>15} {t:>10.4f} "
-                      f"{t / base:>7.2f}", flush=True)
+                t, c = bench(lambda: integrate(n, m, method=meth), rep)
+                base = c if base is None else base
+                print(f"{N:>6} {'masked' if masked else 'full':>8} {meth:>15} {t:>9.4f} "
+                      f"{c:>9.4f} {c / base:>7.2f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -107,18 +107,19 @@ def gradients(normals, mask=None, *, nz_min=NZ_MIN):
     gcol, grow : (H, W) float64
         ``dz/dcol = p = -nx/nz`` and ``dz/drow = -q = ny/nz``.
     """
-    n = np.asarray(normals, dtype=np.float64)
-    length = np.sqrt(np.einsum("...i,...i->...", n, n))
-    ok = length > 0
-    scale = np.where(ok, 1.0 / np.where(ok, length, 1.0), 0.0)
-    nx = n[..., 0] * scale
-    ny = n[..., 1] * scale
-    nz = np.maximum(n[..., 2] * scale, nz_min)
-    gcol = -nx / nz
-    grow = ny / nz
+    n = np.asarray(normals, dtype=np.float32)
+    nx, ny, nz = n[..., 0], n[..., 1], n[..., 2]
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    # clamp n_z / |n| >= nz_min without normalising (only ratios matter);
+    # a zero vector gives zero gradients
+    nzc = np.maximum(nz, np.float32(nz_min) * length)
+    nzc[length == 0] = 1.0
+    inv = np.reciprocal(nzc, dtype=np.float64)
+    gcol = -nx * inv
+    grow = ny * inv
     if mask is not None:
-        gcol = np.where(mask, gcol, 0.0)
-        grow = np.where(mask, grow, 0.0)
+        gcol *= mask
+        grow *= mask
     return gcol, grow
 
 
@@ -174,7 +175,9 @@ def _poisson_dct(gcol, grow, mask):
     ex, ey = _edge_targets(gcol, grow, mask)
     div = _divergence(ex, ey, (H, W))
     # The grid Laplacian with free (Neumann) ends is diagonal in the DCT-II basis.
-    return _dct_solve(div, _neumann_eigs(H, W)).astype(np.float64, copy=False)
+    # Single precision DCT: ~3e-4 px error on a 1200 px relief at 2048², below
+    # the float32 resolution of the returned heights, at half the cost.
+    return _dct_solve(div, _neumann_eigs(H, W), np.float32).astype(np.float64)
 
 
 def _components(mask):
@@ -200,6 +203,11 @@ def _align_components(z, mask, *, label=None, ncomp=None):
     z = z.copy()
     z[mask] -= mins[lab]
     return z
+
+
+def _dot(a, b):
+    """Inner product without BLAS (threaded BLAS dot stalls on a loaded machine)."""
+    return float(np.einsum("ij,ij->", a, b))
 
 
 def _poisson_cg(gcol, grow, mask, *, tol, maxiter):
@@ -244,28 +252,28 @@ def _poisson_cg(gcol, grow, mask, *, tol, maxiter):
     z = _dct_solve(b, lam, np.float32).astype(np.float64)  # warm start: membrane solution
     Ad = np.empty_like(z)
     r = b - apply(z, Ad)
-    nb = float(np.sqrt(np.vdot(b, b)))
+    nb = float(np.sqrt(_dot(b, b)))
     if nb == 0.0:
         return z, 0, True
     y = precond(r)
     d = y.copy()
-    rz = float(np.vdot(r, y))
-    it, converged = 0, bool(np.sqrt(np.vdot(r, r)) <= tol * nb)
+    rz = float(_dot(r, y))
+    it, converged = 0, bool(np.sqrt(_dot(r, r)) <= tol * nb)
     while not converged and it < maxiter:
         it += 1
         apply(d, Ad)
-        dAd = float(np.vdot(d, Ad))
+        dAd = float(_dot(d, Ad))
         if not dAd > 0:
             break
         a = rz / dAd
         z += a * d
         Ad *= a
         r -= Ad
-        if np.sqrt(np.vdot(r, r)) <= tol * nb:
+        if np.sqrt(_dot(r, r)) <= tol * nb:
             converged = True
             break
         y = precond(r)
-        rz_new = float(np.vdot(r, y))
+        rz_new = float(_dot(r, y))
         d *= rz_new / rz
         d += y
         rz = rz_new
