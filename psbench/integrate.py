@@ -315,19 +315,25 @@ def _poisson_exact(gcol, grow, mask, *, tol, maxiter):
 def _fc(gcol, grow):
     H, W = gcol.shape
     # even extension of z  <=>  d/dcol odd in col, even in row (and vice versa)
+    gcol = gcol.astype(np.float32)
+    grow = grow.astype(np.float32)
     gc = np.block([[gcol, -gcol[:, ::-1]], [gcol[::-1, :], -gcol[::-1, ::-1]]])
     gr = np.block([[grow, grow[:, ::-1]], [-grow[::-1, :], -grow[::-1, ::-1]]])
     H2, W2 = 2 * H, 2 * W
     Gc = sfft.rfft2(gc, workers=-1)
     Gr = sfft.rfft2(gr, workers=-1)
-    wr = 2.0 * np.pi * sfft.fftfreq(H2)[:, None]
-    wc = 2.0 * np.pi * sfft.rfftfreq(W2)[None, :]
+    wr = (2.0 * np.pi * sfft.fftfreq(H2)[:, None]).astype(np.float32)
+    wc = (2.0 * np.pi * sfft.rfftfreq(W2)[None, :]).astype(np.float32)
     den = wr ** 2 + wc ** 2
     den[0, 0] = 1.0
-    Z = (-1j * wc * Gc - 1j * wr * Gr) / den
-    Z[0, 0] = 0.0
-    z = sfft.irfft2(Z, s=(H2, W2), workers=-1)
-    return z[:H, :W]
+    Gc *= wc
+    Gr *= wr
+    Gc += Gr
+    Gc *= np.complex64(-1j)
+    Gc /= den
+    Gc[0, 0] = 0.0
+    z = sfft.irfft2(Gc, s=(H2, W2), workers=-1, overwrite_x=True)
+    return z[:H, :W].astype(np.float64)
 
 
 def _poisson_sparse(gcol, grow, mask):
