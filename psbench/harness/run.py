@@ -485,7 +485,7 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
     row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
     _layout_fields(p, row)
     _reset_peak()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         validate(p)
         if p["kind"] == "noop":
@@ -521,6 +521,7 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
         row["traceback"] = "".join(traceback.format_list(tb[-6:])) + row["error"]
         row["_exc"] = exc
     row["t_total"] = time.perf_counter() - t0
+    row["t_cpu"] = time.process_time() - c0
     row["peak_mem_mb"] = _peak_mb()
     import datetime as _dt
 

@@ -7,7 +7,8 @@ One row per run. Column groups:
 - parameters (:data:`PARAM_COLUMNS`);
 - metrics (:data:`METRIC_COLUMNS`), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, times in seconds (``t_render``: render or read the images,
-  0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run), ``peak_mem_mb`` the peak resident set of
+  0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
+  load-independent cost figure), ``peak_mem_mb`` the peak resident set of
   the process that ran the run (reset before each run where Linux allows it);
 - payloads: json strings (``ne_by_zenith``, ``payload`` of analysis runs);
 - status: ``status`` ("ok" / "failed"), ``error``, ``traceback`` (last frames);
@@ -69,6 +70,7 @@ _METRICS = [
     ("t_render", pa.float64()),
     ("t_solve", pa.float64()),
     ("t_total", pa.float64()),
+    ("t_cpu", pa.float64()),
     ("peak_mem_mb", pa.float64()),
 ]
 _FIELDS = (
