@@ -290,6 +290,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     outside = None if full else ~mask
     dark = np.empty((H, W), dtype=bool)
     keep = np.empty((H, W), dtype=bool)
+    z = None  # noise buffer
     for i in range(k):
         diff, spec, lit = shader.light(i)
         np.logical_not(lit, out=dark)  # dark: self or cast shadow, or off the object
@@ -320,7 +321,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
             highlight[i] &= keep
         if noise > 0:
             sigma[i] = np.float32(noise * drange[i])
-            z = rng.standard_normal((H, W), dtype=np.float32)
+            if z is None:
+                z = np.empty((H, W), dtype=np.float32)
+            rng.standard_normal(dtype=np.float32, out=z)
             z *= sigma[i]
             if outside is not None:
                 z *= mask
@@ -352,6 +355,7 @@ class _Shader:
                  positions, falloff, perspective, clamp=True):
         self.mask = mask
         self.clamp = clamp
+        self._t = None  # work buffers, allocated on first use
         self.lay = lay
         self.model = model
         self.rho_d, self.rho_s = rho_d, rho_s
@@ -374,11 +378,29 @@ class _Shader:
             inv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
             self.view = (vx * inv, vy * inv, vz * inv)
 
+    def _dot(self, ax, ay, az, out):
+        """out = n . (ax, ay, az) (scalars or (H, W) planes), without temporaries."""
+        t = self._t
+        np.multiply(self.nx, ax, out=out)
+        np.multiply(self.ny, ay, out=t)
+        out += t
+        np.multiply(self.nz, az, out=t)
+        out += t
+        return out
+
     def light(self, i):
         """Return (diffuse, specular or None, lit) for light i, shadows not applied
-        except that both terms are meaningless where ``lit`` is False."""
-        mu = np.float32(self.lay.power[i])
-        nx, ny, nz = self.nx, self.ny, self.nz
+        except that both terms are meaningless where ``lit`` is False.
+
+        The arrays are work buffers of this shader, valid until the next call
+        (fresh 16 MB temporaries per operation would cost more in page faults at
+        2048^2 than the arithmetic itself).
+        """
+        if self._t is None:
+            shape = self.mask.shape
+            self._t, self._sn, self._sp = (np.empty(shape, np.float32) for _ in range(3))
+            self._lit = np.empty(shape, bool)
+        mu = float(self.lay.power[i])
         scale = None
         if self.positions is None:
             dx, dy, dz = (float(c) for c in self.lay.directions[i])
@@ -392,20 +414,19 @@ class _Shader:
             dx, dy, dz = dx * inv, dy * inv, dz * inv
             if self.falloff:
                 scale = np.float32(L @ L) / dist2
-        sn = nx * dx
-        sn += ny * dy
-        sn += nz * dz
-        sn = np.asarray(sn, dtype=np.float32)
-        lit = sn > 0
+        sn = self._dot(dx, dy, dz, self._sn)
+        lit = np.greater(sn, 0.0, out=self._lit)
         spec = None
         if self.model != "lambert":
             vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
             if self.model == "ts":
                 hx, hy, hz = dx + vx, dy + vy, dz + vz
-                c = nx * hx
-                c += ny * hy
-                c += nz * hz
-                c /= np.sqrt(hx * hx + hy * hy + hz * hz)
+                hn = np.sqrt(hx * hx + hy * hy + hz * hz)
+                if np.ndim(hn) == 0:  # constant bisector n_h
+                    c = self._dot(hx / hn, hy / hn, hz / hn, self._sp)
+                else:
+                    c = self._dot(hx, hy, hz, self._sp)
+                    c /= hn
                 np.clip(c, -1.0, 1.0, out=c)
                 a = np.arccos(c, out=c)
                 a *= self.m
@@ -413,24 +434,29 @@ class _Shader:
                 np.negative(a, out=a)
                 spec = np.exp(a, out=a)
             else:  # phong: r.v = 2 (s.n)(n.v) - s.v
-                nv = nx * vx
-                nv += ny * vy
-                nv += nz * vz
-                rv = 2.0 * sn * nv
+                rv = self._dot(vx, vy, vz, self._sp)
+                rv *= sn
+                rv *= 2.0
                 rv -= dx * vx + dy * vy + dz * vz
                 np.maximum(rv, 0.0, out=rv)
                 spec = np.power(rv, self.phong_m, out=rv)
-            spec *= mu
-            spec *= self.rho_s
+            if np.ndim(self.rho_s) == 0:
+                spec *= np.float32(mu * float(self.rho_s))
+            else:
+                spec *= np.float32(mu)
+                spec *= self.rho_s
         diff = sn
-        diff *= mu
-        diff *= self.rho_d
+        if np.ndim(self.rho_d) == 0:
+            diff *= np.float32(mu * float(self.rho_d))
+        else:
+            diff *= np.float32(mu)
+            diff *= self.rho_d
         if scale is not None:
             diff *= scale
             if spec is not None:
                 spec *= scale
         if not self.clamp:  # shadows="none": nothing is dark
-            lit = np.ones_like(lit)
+            lit[...] = True
         return diff, spec, lit
 
     def components(self, dark):
