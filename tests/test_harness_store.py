@@ -254,3 +254,11 @@ def test_results_cli_compact_ls_verify(tmp_path, capsys):
     assert "junk.parquet" in capsys.readouterr().out
     with pytest.warns(store.StoreWarning, match="junk.parquet"):
         assert cli.main(["summary", "--root", str(tmp_path), "--by", "kind"]) == 0
+
+
+def test_plus_prefix_accepted_for_existing_keys():
+    from psbench.harness.app import _fix_argv
+
+    assert _fix_argv(["+rerun=true", "++seed=1", "+experiment=t", "mask=Th",
+                      "+thresholds.k_low=0.1", "+foo=1"]) == \
+        ["++rerun=true", "++seed=1", "+experiment=t", "mask=Th", "++thresholds.k_low=0.1", "+foo=1"]
