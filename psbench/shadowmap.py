@@ -129,6 +129,7 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
     # hair outside the source)
     hpad = cv2.copyMakeBorder(h, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=float(_FLOOR))
     hb = h + np.float32(bias)
+    work = {}  # buffers reused across lights (fresh large temporaries cost page faults)
     for i, (dx, dy, dz) in enumerate(d):
         rxy = float(np.hypot(dx, dy))
         if rxy < 1e-12:
@@ -137,7 +138,7 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
         rise = hmax - hmin - bias
         if rise <= 0 or rise < 1e-3 * t:
             continue  # no occluder can rise above the ray within reach of any point
-        out[i] = _one(h, hb, hpad, dx / rxy, dy / rxy, t, int(oversample))
+        _one(h, hb, hpad, dx / rxy, dy / rxy, t, int(oversample), out[i], work)
     if inside is not None:
         out &= inside[None]
     return out
@@ -187,9 +188,19 @@ def _prepare(height, mask, bias, background):
     return np.where(inside, h, np.float32(bg)).astype(np.float32), inside, bias
 
 
-def _one(h, hb, hpad, ux, uy, t, over=1):
-    """Shadow map (H, W) bool for one light: horizontal unit (ux, uy) in the x-right,
-    y-up frame, rise t per pixel; ``over`` working columns per pixel across rays."""
+def _buffer(work, name, shape, dtype):
+    """A C-contiguous array of ``shape`` carved from a reusable flat buffer."""
+    n = int(np.prod(shape))
+    buf = work.get((name, dtype))
+    if buf is None or buf.size < n:
+        buf = work[(name, dtype)] = np.empty(n, dtype=dtype)
+    return buf[:n].reshape(shape)
+
+
+def _one(h, hb, hpad, ux, uy, t, over, out, work):
+    """Write into ``out`` the (H, W) shadow map of one light: horizontal unit (ux, uy)
+    in the x-right, y-up frame, rise t per pixel; ``over`` working columns per pixel
+    across rays; ``work`` holds reusable buffers."""
     H, W = h.shape
     a, b = ux, -uy  # towards the light in (col, row) units
     rows = abs(b) >= abs(a)
@@ -217,20 +228,23 @@ def _one(h, hb, hpad, ux, uy, t, over=1):
     big = T * (L + 1) > 5e4  # g = h + T rho loses float32 precision for steep lights
     dtype = np.float64 if big else np.float32
     src = hpad.astype(dtype) if big else hpad
-    g = cv2.warpAffine(src, fwd, (nq, L + 1), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                       borderMode=cv2.BORDER_REPLICATE)
+    g = _buffer(work, "g", (L + 1, nq), dtype)
+    cv2.warpAffine(src, fwd, (nq, L + 1), dst=g,
+                   flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
     g += (T * (np.arange(L + 1, dtype=np.float64) - 1.0)).astype(dtype)[:, None]
     for w in range(1, L + 1):  # running max towards +rho (row loop: ~5x faster
         np.maximum(g[w], g[w - 1], out=g[w])  # than np.maximum.accumulate(axis=0))
     # horizon of p = running max at working row rho(p), i.e. up to rho(p) - 1
-    horizon = cv2.warpAffine(g, back, (W, H), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                             borderMode=cv2.BORDER_REPLICATE)
+    horizon = _buffer(work, "horizon", (H, W), dtype)
+    cv2.warpAffine(g, back, (W, H), dst=horizon,
+                   flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
     # g(p) = h(p) + T rho(p), rho affine in (c, r)
     rowpart = (T * (back[1, 1] * np.arange(H) + back[1, 2])).astype(dtype)
     colpart = (T * (back[1, 0] * np.arange(W))).astype(dtype)
-    thr = hb.astype(dtype, copy=False) + rowpart[:, None]
+    thr = _buffer(work, "thr", (H, W), dtype)
+    np.add(hb, rowpart[:, None], out=thr)
     thr += colpart[None, :]
-    return horizon > thr
+    np.greater(horizon, thr, out=out)
 
 
 def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
