@@ -286,6 +286,9 @@ def ie_components(payload) -> dict:
     out = {}
     if not isinstance(obj, dict):
         return out
+    if isinstance(obj.get("part"), list) and (isinstance(obj.get("ie_rel"), list)
+                                              or isinstance(obj.get("ie"), list)):
+        return _ie_frame_components(obj)
     flat = dict(obj)
     for k in ("ie", "scalars", "summary", "mean"):
         if isinstance(obj.get(k), dict):
@@ -319,6 +322,35 @@ def ie_components(payload) -> dict:
                     v = by.get(key)
                     if isinstance(v, list) and len(v) > 1 and bx is not None and len(v) == len(bx):
                         out.setdefault(comp + "_by_zenith", (bx, np.asarray(v, dtype=float)))
+    return out
+
+
+def _ie_frame_components(obj) -> dict:
+    """psbench.analysis.ie_decomposition's DataFrame (as a dict of lists): columns part
+    (highlight, self_shadow, cast_shadow, total), ie, ie_rel (% of the images' dynamic
+    range) and, when binned by surface zenith, zenith. ``shadow`` = self + cast."""
+    df = pd.DataFrame(obj)
+    val = "ie_rel" if "ie_rel" in df and df["ie_rel"].notna().any() else "ie"
+    out = {}
+    if "zenith" in df and df["zenith"].notna().any():
+        for part, g in df.groupby("part"):
+            m = g.groupby("zenith")[val].mean()
+            out[f"{part}_by_zenith"] = (m.index.to_numpy(float), m.to_numpy(float))
+        if "self_shadow_by_zenith" in out and "cast_shadow_by_zenith" in out:
+            x, a = out["self_shadow_by_zenith"]
+            _, b = out["cast_shadow_by_zenith"]
+            both = np.isnan(a) & np.isnan(b)
+            out["shadow_by_zenith"] = (x, np.where(both, np.nan,
+                                                   np.nan_to_num(a) + np.nan_to_num(b)))
+        for part in list(out):
+            x, y = out[part]
+            ok = np.isfinite(y)
+            out[part] = (x[ok], y[ok])
+    else:
+        m = df.groupby("part")[val].mean()
+        out.update({str(k): float(v) for k, v in m.items()})
+        if "self_shadow" in out and "cast_shadow" in out:
+            out["shadow"] = out["self_shadow"] + out["cast_shadow"]
     return out
 
 

@@ -523,6 +523,14 @@ def v_fig4_10(agg, rows=None):
             out.append(_v(e, f"Z_source {z}: highlight IE peaks near Z_surface = Z_source/2 "
                           f"(+-10 deg)", abs(peak - float(z) / 2) <= 10,
                           f"peak at {_f(peak, 0)} deg, Z_source/2 = {_f(float(z) / 2, 1)}"))
+        sh = series(agg, z, "shadow")
+        lim = 90.0 - float(z)
+        below, above = sh[sh.index < lim], sh[sh.index >= lim]
+        if len(below) and len(above):
+            out.append(_v(e, f"Z_source {z}: shadow IE rises beyond Z_surface = 90 - Z_source",
+                          float(above.mean()) > float(below.mean()),
+                          f"mean shadow IE {_f(float(below.mean()))} below {_f(lim, 0)} deg vs "
+                          f"{_f(float(above.mean()))} above"))
     return out or [_nodata(e, "Highlight IE peaks near Z_surface = Z_source/2")]
 
 
