@@ -97,7 +97,8 @@ def study(ds, label, *, methods, scopes, repeat, rings, out):
 
     k, H, W = ds.images.shape
     p(f"\n### {label}: {k} images, {W}x{H}, {int(ds.mask.sum())} mask pixels\n")
-    p(HEAD)
+    if methods:
+        p(HEAD)
     for m in methods:
         for scope in (scopes if "Th" in m.split("-") else ["-"]):
             kw = {} if scope == "-" else {"th_scope": scope}
@@ -114,7 +115,9 @@ def study(ds, label, *, methods, scopes, repeat, rings, out):
     imgs = np.ascontiguousarray(ds.images[sel])
     lay = layout(ds.lights.directions[sel], ring=ring)
     zr = [(lay.zenith[lay.ring == r].min(), lay.zenith[lay.ring == r].max()) for r in (0, 1)]
-    p(f"\nWPS on two rings picked for {rings}: image numbers {(sel + 1).tolist()}; "
+    nums = [int(Path(ds.names[j]).stem) if Path(ds.names[j]).stem.isdigit() else ds.names[j]
+            for j in sel]
+    p(f"\nWPS on two rings picked for {rings}: image numbers {nums}; "
       f"ring zeniths {zr[0][0]:.1f}-{zr[0][1]:.1f} and {zr[1][0]:.1f}-{zr[1][1]:.1f} deg\n")
     p(HEAD)
     r = measure(ds, imgs, lay, lambda: solve(imgs, lay, mask="None", object_mask=ds.mask), repeat)
@@ -140,7 +143,7 @@ def main(argv=None):
     ap.add_argument("--data", help="folder holding diligent/ (default $PSBENCH_DATA or ../shared/data)")
     ap.add_argument("--objects", nargs="+", default=["cat", "bear", "bear-21"],
                     help="cat, bear, bear-21 (bear without images 1-20)")
-    ap.add_argument("--methods", nargs="+", default=METHODS)
+    ap.add_argument("--methods", nargs="*", default=METHODS, help="(none = WPS study only)")
     ap.add_argument("--scopes", nargs="+", default=["image", "object", "robust", "pixel"])
     ap.add_argument("--rings", default="12x8+32x8", help="two-ring subset for WPS ('' = skip)")
     ap.add_argument("--repeat", type=int, default=1)
