@@ -6,7 +6,6 @@ import pytest
 
 serial = pytest.importorskip("serial")
 
-from psbench import PsbenchError  # noqa: E402
 from psbench.capture import (DeviceTimeout, Disconnected, LedController, PortBusy,  # noqa: E402
                              PortNotFound, ProtocolError, capture, capture_all)
 from psbench.capture.camera import FolderCamera  # noqa: E402
