@@ -147,7 +147,9 @@ def normalize(params: dict, *, base_dir=None) -> dict:
         out["lights"] = str(out["lights"]).replace(" ", "")
         out["model"] = str(out["model"])
         sh = out["shadows"]
-        out["shadows"] = sh if isinstance(sh, str) and sh in ("all", "self") else _bool(sh, "shadows")
+        if isinstance(sh, str) and sh.lower() in ("all", "self", "none"):
+            sh = {"all": True, "self": False, "none": "none"}[sh.lower()]
+        out["shadows"] = sh if sh == "none" else _bool(sh, "shadows")
         out["noise"] = _float(out["noise"], "noise")
         out["quantize"] = _int(out["quantize"], "quantize", allow_none=True)
         out["size"] = None if _is_path(s) else _int(out["size"], "size")
@@ -424,6 +426,11 @@ def _solve_metrics(p, sc):
             row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, sc.mask))
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
+    w = getattr(res, "weights", None)
+    if p["method"] == "wps" and w is not None and np.ndim(w) == 3 \
+            and np.shape(w)[0] != np.shape(sc.images)[0]:
+        row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
+                                                mask=sc.mask, weights=w))
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):
@@ -481,6 +488,8 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
     for k in ("thresholds", "args"):
         row[k] = json.dumps(p[k], sort_keys=True) if p[k] else None
     row["extras"] = json.dumps(p["extras"]) if p["extras"] else None
+    if row.get("shadows") == "none":     # bool column: no shadows at all (exact value in config)
+        row["shadows"] = False
     row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
     row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
     _layout_fields(p, row)
@@ -580,6 +589,8 @@ def format_row(row) -> str:
         meth = r.get("method") or "ps"
         if r.get("weight"):
             meth += f"/{r['weight']}"
+        if r.get("binary"):
+            meth += " binary"
         parts.append(f"{m} {meth}")
     if r.get("status") == "failed":
         parts.append(f"FAILED: {r.get('error')}")

@@ -4,9 +4,11 @@ One row per run. Column groups:
 
 - identity: ``run_id`` (hash of the resolved run parameters), ``sweep`` (the store
   folder: experiment name or ``sweep=`` name), ``experiment`` (or null), ``kind``;
-- parameters (:data:`PARAM_COLUMNS`);
+- parameters (:data:`PARAM_COLUMNS`); ``shadows`` is True for cast + self shadows, False
+  otherwise (render's "self" and "none"; the exact value is in ``config``);
 - metrics (:data:`METRIC_COLUMNS`), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
-  the images' dynamic range, times in seconds (``t_render``: render or read the images,
+  the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
+  ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
   0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
   load-independent cost figure), ``peak_mem_mb`` the peak resident set of
   the process that ran the run (reset before each run where Linux allows it);
@@ -63,6 +65,7 @@ _METRICS = [
     ("ie_l2", pa.float64()),
     ("ie_linf", pa.float64()),
     ("ie_rel", pa.float64()),
+    ("ie_weighted", pa.float64()),
     ("qf_hi", pa.float64()),
     ("qf_sh", pa.float64()),
     ("qf_total", pa.float64()),
