@@ -42,7 +42,7 @@ def experiment_spec(exp) -> dict:
                            f"+experiment={exp} (available: {', '.join(available()) or 'none'})")
     if not isinstance(exp, dict):
         raise PsbenchError(f"experiment must be a mapping with name/grids, got {exp!r}")
-    unknown = set(exp) - {"name", "description", "grids", "fixed", "scales", "kind"}
+    unknown = set(exp) - {"name", "description", "grids", "fixed", "scales"}
     if unknown:
         raise PsbenchError(f"experiment has unknown keys {sorted(unknown)}; valid: name, "
                            f"description, grids, fixed, scales")

@@ -205,6 +205,8 @@ def execute_runs(runs, *, root, sweep, experiment=None, rerun=False, retry_faile
     results = []
     if todo:
         if launcher == "joblib":
+            if all(p["kind"] == "cond" for p in todo):
+                jobs = 1                  # microseconds each: worker start-up would dominate
             chunks = make_chunks(todo, workers=_n_workers(jobs))
             results = _joblib(chunks, prog, jobs=jobs, root=root, sweep=sweep,
                               experiment=experiment)
