@@ -279,3 +279,20 @@ def test_normal_gt_mat_and_colour_dataset(tmp_path):
     sio.savemat(p / "Normal_gt.mat", {"N": gt})
     with pytest.raises(PsbenchError, match="no key 'Normal_gt'"):
         io.read_dataset(p)
+
+
+def test_write_outputs_from_solve_and_wps(tmp_path):
+    from psbench.render import render
+    from psbench.solve import solve
+    from psbench.surfaces import make_surface
+    s = make_surface("spheres", 32)
+    lay = layout("30x4+60x4")
+    sc = render(s, lay, model="lambert")
+    res = solve(sc.images, lay, mask="Th", object_mask=s.mask, want_height=True)
+    io.write_outputs(tmp_path / "ps", res, mask=s.mask)
+    assert np.array_equal(np.load(tmp_path / "ps" / "normals.npy"), res.normals)
+    assert len(list((tmp_path / "ps" / "valid").glob("*.png"))) == 8
+    w = solve(sc.images, lay, method="wps", object_mask=s.mask)
+    io.write_outputs(tmp_path / "wps", w, mask=s.mask)
+    assert len(list((tmp_path / "wps" / "weights").glob("*.png"))) == 2  # one per ring
+    assert (tmp_path / "wps" / "mesh.ply").is_file()  # height integrated when absent
