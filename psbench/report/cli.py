@@ -117,13 +117,19 @@ def _ts(x):
     return "" if x is None or pd.isna(x) else pd.Timestamp(x).strftime("%Y-%m-%d %H:%M:%S")
 
 
+def _pstr(v):
+    if isinstance(v, float) and v == int(v) and abs(v) < 1e9:
+        return str(int(v))
+    return str(v)
+
+
 def _averaged_over(rows):
     keys = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model", "shadows",
             "size", "seed")
     out = []
     for k in keys:
         if k in rows and rows[k].notna().any():
-            vals = _num_sort([str(v) if k != "data" else T.data_name(v)
+            vals = _num_sort([_pstr(v) if k != "data" else T.data_name(v)
                               for v in rows[k].dropna().unique()])
             if len(vals) > 12:
                 vals = vals[:12] + [f"... ({len(vals)} values)"]
@@ -146,6 +152,8 @@ def build_experiment(name, df, out, scale, messages):
                     + (f" (image size {size} x {size}; the thesis used 512 x 512)" if size else "")
                     + f". {spec.get('description', '')}"),
               ("p", "What psbench averages: " + T.AVERAGES.get(name, "")),
+              ("p", ("Deviations / caveats: " + T.NOTES[name]) if name in T.NOTES else
+                    "Deviations / caveats: none beyond the image size stated above."),
               ("p", f"Runs: {len(ok)} ok, {len(failed)} failed (of {len(rows_all)} stored at "
                     f"this scale).")]
     if len(ok):
@@ -258,6 +266,8 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         "NOT SUPPORTED": s["not_supported"], "INCONCLUSIVE": s["inconclusive"]}
         for s in summaries])
     blocks.append(("table", tab))
+    blocks += [("h2", "Deviations from the thesis (chosen to fit the time budget or the data)"),
+               ("list", [f"{n}: {T.NOTES[n]}" for n in names if n in T.NOTES])]
     blocks += [("h2", "Pages"),
                ("links", [(f"{n}.html", f"{T.EXPERIMENTS[n]} ({n})") for n in names])]
     if panel_files:
