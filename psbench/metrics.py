@@ -381,6 +381,9 @@ def dynamic_range(images, mask=None):
     return float((v.max(axis=1) - v.min(axis=1)).astype(np.float64).mean())
 
 
+_image_range = dynamic_range  # ie_relative's keyword shadows the name
+
+
 def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, **kwargs):
     """IE as a percentage of the mean image dynamic range.
 
@@ -397,11 +400,12 @@ def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, *
     """
     ie = intensity_error(images, result, lights, mask=mask, **kwargs)
     if dynamic_range is None:
-        dr = globals()["dynamic_range"](images, mask)
+        dr = _image_range(images, mask)
     else:
         dr = np.asarray(dynamic_range, dtype=np.float64)
         if dr.ndim > 1 or dr.size == 0:
-            raise PsbenchError(f"dynamic_range must be a number or a (k,) array, got shape {dr.shape}")
+            raise PsbenchError(
+                f"dynamic_range must be a number or a (k,) array, got shape {dr.shape}")
         dr = float(dr.mean())
     if not dr > 0:
         return ie * np.nan if kwargs.get("per_pixel") else float("nan")
