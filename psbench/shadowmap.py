@@ -248,7 +248,7 @@ def _one(h, hb, hpad, ux, uy, t, over, out, work):
 
 
 def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
-                     oversample=1):
+                     oversample=2):
     """Cast-shadow maps of a height field for near point lights.
 
     Parameters
@@ -260,8 +260,10 @@ def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
         datum, x right, y up, z up (psbench's frame).
     mask, bias, background
         As in :func:`shadow_map`.
-    oversample : int, default 1
-        Angular samples per pixel of arc at the farthest image point (1..4).
+    oversample : int, default 2
+        Samples per pixel along the radius and along the arc at the farthest
+        image point (1..4). 2 agrees with a ray march on >= 99.5 % of the pixels
+        of a sharp pillar (1: >= 99.3 %) at about 4x the cost of 1.
 
     Returns
     -------
@@ -278,6 +280,8 @@ def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
     than ``(L_z - h(p)) / |p - F|``. The height map is resampled on a polar grid
     around F (``cv2.remap``, bilinear, angle chunks), a running minimum of sigma
     runs outwards, and it is sampled back one radial step nearer the light.
+    Radial samples do not fall on pixel centres, so unlike :func:`shadow_map` the
+    edges of sharp occluders are resolved to about a radial step.
     """
     h, inside, bias = _prepare(height, mask, bias, background)
     pos = np.asarray(positions, dtype=np.float64)
@@ -317,10 +321,11 @@ def _one_point(h, hpad, L, bias, over):
         pc = np.arctan2(r0 - fr, c0 - fc)
         rel = (np.arctan2(ys, xs) - pc + np.pi) % (2 * np.pi) - np.pi
         phi0, span = pc + rel.min(), float(rel.max() - rel.min())
-    n_rad = int(np.ceil(rho_max - rho0)) + 3
+    rover = over  # radial samples per pixel
+    n_rad = int(np.ceil((rho_max - rho0) * rover)) + 3
     n_ang = min(int(np.ceil(span * rho_max * over)) + 3, 32000)  # cv2.remap limit
     dphi = span / (n_ang - 3) if not inside_rect else span / (n_ang - 1)
-    rho = (rho0 + np.arange(n_rad, dtype=np.float64)).astype(np.float32)  # radial step 1 px
+    rho = (rho0 + np.arange(n_rad, dtype=np.float64) / rover).astype(np.float32)
     with np.errstate(divide="ignore"):
         inv_rho = (1.0 / rho)[:, None]
     sig = np.empty((n_rad, n_ang), dtype=np.float32)
@@ -357,7 +362,7 @@ def _one_point(h, hpad, L, bias, over):
         np.remainder(ph, np.float32(2 * np.pi), out=ph)
         ph -= np.float32(np.pi)
         ja = ph / np.float32(dphi) + np.float32(1.0)
-    jr = rp - np.float32(rho0 + 1.0)  # one radial step nearer the light: points before p
+    jr = (rp - np.float32(rho0)) * np.float32(rover) - np.float32(1.0)  # one step nearer
     horizon = cv2.remap(sig, ja, jr, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     with np.errstate(divide="ignore", invalid="ignore"):
         own = (np.float32(Lz) - h) / rp
