@@ -157,7 +157,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         r = 2 (s.n) n - s (Eq. 2.13).
         ``"ts"`` (Torrance–Sparrow): I = mu [rho_s exp(-m^2 arccos(n_h.n)^2) + rho_d (s.n)],
         n_h = (v + s) / |v + s| (Eq. 2.14–2.15).
-        Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow.
+        Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow. Cast
+        shadows come from :func:`psbench.shadowmap.shadow_map` on
+        ``surface.height`` (``bias=shadow_bias``, 2x oversampled sweep).
     shadows : {True, "all", False, "self", "none"}
         True / ``"all"``: self and cast shadows. False / ``"self"``: no cast
         shadows; self-shadowed points (s.n <= 0) are still 0, because light
@@ -266,9 +268,10 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         raise PsbenchError("falloff=True needs near lights: pass light_positions (k, 3)")
     if perspective is not None:
         f = _positive(perspective, "perspective")
-        if f <= float(np.max(height, where=mask, initial=0.0)):
+        top = float(np.max(height, where=mask, initial=0.0))
+        if f <= top:
             raise PsbenchError(f"perspective={f:g}: the camera (0, 0, f) must be above the surface "
-                               f"(highest point {float(height[mask].max()):g})")
+                               f"(highest point {top:g})")
         perspective = f
 
     shader = _Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
