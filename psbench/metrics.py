@@ -472,7 +472,7 @@ def quality_counts(flagged, truth, mask=None):
     }
 
 
-def quality_factor(flagged, truth, mask=None):
+def quality_factor(flagged, truth, mask=None, *, targets=None):
     """Quality factor QF = TP / (TP + FP + FN) of a mask (Eq. 2.32).
 
     Counted over observations: k images x mask pixels.
@@ -486,6 +486,10 @@ def quality_factor(flagged, truth, mask=None):
         (or ``shadow`` instead of the two shadow maps). shadow = self | cast.
     mask : (H, W) bool, optional
         Object pixels to count; None = all.
+    targets : iterable of {"hi", "sh"}, optional
+        Classes the method is meant to detect. A class not listed is reported
+        as NaN (Table 5.3's N/A, e.g. ``targets=("hi",)`` for Re); an empty
+        list (None PS, CJ) makes all three NaN. Default: compute all.
 
     Returns
     -------
@@ -502,12 +506,19 @@ def quality_factor(flagged, truth, mask=None):
 
         NaN when TP + FP + FN = 0 (class empty and nothing falsely flagged);
         report it as N/A. An observation both highlight and shadow counts for
-        both classes. (Table 5.3's N/A for methods that do not target a class,
-        e.g. Sh for "Re", is a reporting decision by mask name, not computed here.)
+        both classes. Table 5.3's N/A for methods that do not target a class
+        (e.g. Sh for "Re") is a decision by mask name: pass ``targets``.
     """
+    keep = {"hi", "sh", "total"}
+    if targets is not None:
+        targets = {targets} if isinstance(targets, str) else set(targets)
+        bad = targets - {"hi", "sh"}
+        if bad:
+            raise PsbenchError(f"targets may hold 'hi' and 'sh', got {sorted(bad)}")
+        keep = targets | ({"total"} if targets else set())
     counts = quality_counts(flagged, truth, mask)
     out = {}
     for cls, c in counts.items():
         den = c["tp"] + c["fp"] + c["fn"]
-        out[cls] = c["tp"] / den if den else float("nan")
+        out[cls] = c["tp"] / den if den and cls in keep else float("nan")
     return out

@@ -309,6 +309,17 @@ def test_qf_empty_class_is_nan():
     assert M.quality_factor(z, truth)["hi"] == 0.0
 
 
+def test_qf_targets_report_na():
+    fl, truth = _qf_case()
+    q = M.quality_factor(fl, truth, targets=("hi",))  # e.g. the Re mask
+    assert q["hi"] == pytest.approx(1 / 5) and np.isnan(q["sh"])
+    assert q["total"] == pytest.approx(3 / 8)
+    assert M.quality_factor(fl, truth, targets="sh")["sh"] == pytest.approx(2 / 6)
+    assert all(np.isnan(v) for v in M.quality_factor(fl, truth, targets=()).values())
+    with pytest.raises(PsbenchError, match="targets"):
+        M.quality_factor(fl, truth, targets=("hi", "cs"))
+
+
 def test_qf_bad_input():
     fl, truth = _qf_case()
     with pytest.raises(PsbenchError, match="flagged must have shape"):
