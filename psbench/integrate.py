@@ -450,20 +450,3 @@ def _integrate_box(n, m, method, nz_min, tol, maxiter):
         mm = np.ones(n.shape[:2], dtype=bool) if m is None else m
         z = _align_components(_poisson_sparse(gcol, grow, mm), mm)
     return z
-
-
-class _CallableModule(type(warnings)):
-    """``psbench.integrate`` is both this module and the function :func:`integrate`.
-
-    Importing the submodule (``from psbench.integrate import ...``) rebinds the
-    package attribute ``psbench.integrate`` to the module; making the module
-    callable keeps ``psbench.integrate(normals, mask)`` working either way.
-    """
-
-    def __call__(self, *args, **kwargs):
-        return integrate(*args, **kwargs)
-
-
-import sys as _sys  # noqa: E402
-
-_sys.modules[__name__].__class__ = _CallableModule
