@@ -11,7 +11,8 @@ normalized json hashes to the ``run_id``. Kinds:
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
 - ``analysis``: calls ``psbench.analysis.<analysis>`` with the run parameters its
   signature accepts plus ``args``; its output is stored as json in ``payload``.
-- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s}``).
+- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true}``;
+  ``die`` kills the process running it: only for tests of worker crashes).
 
 Runs sharing a scene (:func:`scene_key`) reuse one rendered scene in
 :func:`run_chunk`.
@@ -503,6 +504,10 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
                 time.sleep(float(a["sleep"]))
             if a.get("fail"):
                 raise RuntimeError(str(a["fail"]))
+            if a.get("die"):                      # simulate a worker killed mid-run
+                import signal
+
+                os.kill(os.getpid(), signal.SIGKILL)
             row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
         elif p["kind"] == "cond":
             from ..lights import layout

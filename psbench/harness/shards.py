@@ -106,10 +106,15 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
     from joblib import Parallel, delayed
 
     par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
-    for res in par(delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment)
-                   for c in chunks):
-        prog.update(len(res), sum(r["status"] != "ok" for r in res))
-        results.extend(res)
+    try:
+        for res in par(delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment)
+                       for c in chunks):
+            prog.update(len(res), sum(r["status"] != "ok" for r in res))
+            results.extend(res)
+    except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OOM killer
+        prog.stream.write(f"\nworker pool failed ({type(exc).__name__}: {str(exc)[:300]}); "
+                          f"completed runs are stored: run the same command again to resume\n")
+        results.append({"run_id": None, "status": "failed", "error": str(exc), "t_total": None})
     return results
 
 
