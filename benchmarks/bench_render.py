@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import time
 
@@ -82,6 +83,10 @@ def main(argv=None):
               f"-> ratio full/base {full / base:.2f}x wall, {c_full / c_base:.2f}x CPU")
         print(f"  shadow_map alone, {lay.k} lights     : {smap:.3f} s wall, {c_smap:.3f} s CPU  "
               f"({smap / lay.k * 1e3:.1f} ms/light wall)")
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        out_mb = lay.k * size * size * (4 + 3) / 2 ** 20
+        print(f"  peak RSS of this process so far  : {peak:.0f} MB "
+              f"(the Scene's images + 3 truth stacks: {out_mb:.0f} MB)")
 
 
 if __name__ == "__main__":
