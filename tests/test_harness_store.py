@@ -4,7 +4,6 @@ Independent of the numerical modules: runs use ``kind: noop`` (the harness's
 self-test kind) except where noted.
 """
 import json
-import os
 import warnings
 
 import pandas as pd
@@ -14,7 +13,7 @@ import pytest
 
 from psbench import PsbenchError
 from psbench.harness import grid, run, shards, store
-from psbench.harness.schema import COLUMNS, META_KEY, SCHEMA, SCHEMA_VERSION
+from psbench.harness.schema import COLUMNS, META_KEY, SCHEMA_VERSION
 
 
 def _row(rid, sweep="s", utc=None, **kw):

@@ -19,7 +19,6 @@ exit with code 2.
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
