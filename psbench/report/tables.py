@@ -164,12 +164,33 @@ def load_store(results) -> tuple[pd.DataFrame, list[str]]:
     return df, msgs
 
 
+def expected_run_ids(experiment: str, scale: str) -> set | None:
+    """run_ids of the current definition of ``experiment`` at ``scale`` (None if the grid
+    cannot be expanded here, e.g. without the harness)."""
+    try:
+        from omegaconf import OmegaConf
+
+        from psbench.harness.grid import expand
+        from psbench.harness.run import run_id
+
+        spec = experiment_spec(experiment)
+        if not spec:
+            return None
+        spec = OmegaConf.to_container(OmegaConf.create(spec), resolve=True)
+        return {run_id(p) for p in expand(spec, scale)}
+    except Exception:  # noqa: BLE001
+        return None
+
+
 def select(df: pd.DataFrame, experiment: str, scale: str | None = None,
-           status: str | None = "ok") -> pd.DataFrame:
+           status: str | None = "ok", current: bool = True) -> pd.DataFrame:
     """Rows of one experiment (``experiment`` column, else ``sweep``) at one scale.
 
-    The scale is recognized by the image size of ``conf/experiment/<experiment>.yaml``'s
-    ``scales.<scale>.size``; experiments without a size (cond, real data) keep all rows.
+    With ``current`` (default), rows whose run_id belongs to the experiment's current grid
+    at ``scale`` are kept (stale rows of an older grid definition are ignored); when none
+    match (e.g. relative data paths expanded from another folder), the scale is recognized
+    by the image size of ``scales.<scale>.size`` instead; experiments without a size
+    (cond, real data) then keep all rows.
     """
     if df is None or df.empty:
         return _empty_like(df)
@@ -178,10 +199,14 @@ def select(df: pd.DataFrame, experiment: str, scale: str | None = None,
     out = df[key == experiment]
     if status is not None and "status" in out:
         out = out[out["status"] == status]
-    if scale is not None and "size" in out:
-        size = scale_size(experiment, scale)
-        if size is not None:
-            out = out[out["size"] == size]
+    if scale is not None:
+        ids = expected_run_ids(experiment, scale) if current else None
+        if ids and out["run_id"].isin(ids).any():
+            out = out[out["run_id"].isin(ids)]
+        elif "size" in out:
+            size = scale_size(experiment, scale)
+            if size is not None:
+                out = out[out["size"] == size]
     return out.reset_index(drop=True)
 
 
