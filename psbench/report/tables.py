@@ -108,7 +108,12 @@ NOTES = {
                 "of the penny (psbench-capture rig=sim + psbench-calibrate all) and the "
                 "DiLiGenT cat and bear. DiLiGenT's lights reach only ~43 deg zenith, so its "
                 "'60 deg' ring is its outermost lights; a missing folder makes its runs fail "
-                "(listed on the page).",
+                "(listed on the page). IE: the harness stores Eq. 2.29 (residual of the fused "
+                "normals over all images) also for WPS rows, whereas the thesis's Table 6.1 "
+                "uses the weighted per-ring IE of Eq. 2.30 (psbench.metrics.intensity_error("
+                "..., weights=result.weights)); under Eq. 2.29 WPS cannot beat PS's "
+                "least-squares residual, so the 'WPS reduces IE' verdicts are INCONCLUSIVE "
+                "until the harness stores the Eq. 2.30 value.",
     "table6_2": "Times on a shared 2-core machine (three repeats, medians); see table6_1.",
     "fig4_4": "Full scale at 256 x 256.",
     "fig5_12": "Full scale at 256 x 256; NL is xNL at 8 images.",
