@@ -194,7 +194,10 @@ def build_experiment(name, df, out, scale, messages):
         blocks += [("h2", "Experiment definition"), ("pre", yaml_path.read_text())]
     write_page(out, name, blocks, T.EXPERIMENTS[name])
     write_atomic(Path(out) / "data" / f"{name}.csv", cmp.to_csv(index=False))
-    summary = dict(experiment=name, **_wall(rows_all), size=size,
+    shas = sorted(set(rows_all["git_sha"].dropna())) if "git_sha" in rows_all else []
+    summary = dict(experiment=name, **_wall(rows_all), size=size, shas=shas,
+                   dirty=int(rows_all["git_dirty"].fillna(False).astype(bool).sum())
+                   if "git_dirty" in rows_all else 0,
                    supported=sum(v.status == V.SUPPORTED for v in verdicts),
                    not_supported=sum(v.status == V.NOT_SUPPORTED for v in verdicts),
                    inconclusive=sum(v.status == V.INCONCLUSIVE for v in verdicts))
@@ -244,14 +247,15 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     if messages:
         blocks += [("h2", "Warnings"), ("list", messages)]
     if len(df):
-        shas = df["git_sha"].dropna().unique() if "git_sha" in df else []
-        dirty_rows = int(df["git_dirty"].fillna(False).astype(bool).sum()) if "git_dirty" in df \
-            else 0
+        shas = sorted({x for s in summaries for x in s["shas"]})
+        dirty_rows = sum(s["dirty"] for s in summaries)
+        n_rows = sum(s["n"] for s in summaries)
         vers = df["psbench_version"].dropna().unique() if "psbench_version" in df else []
-        blocks.append(("p", f"Store: {len(df)} rows in total (all scales and sweeps); rows were "
-                            f"written by psbench {', '.join(map(str, vers)) or '?'} at git "
-                            f"{', '.join(s[:10] for s in shas) or '?'}; {dirty_rows} rows from a "
-                            f"dirty tree."))
+        blocks.append(("p", f"Store: {len(df)} rows in total (all scales and sweeps), {n_rows} "
+                            f"of them reported here; those were written by psbench "
+                            f"{', '.join(map(str, vers)) or '?'} at git "
+                            f"{', '.join(s[:10] for s in shas) or '?'} ({dirty_rows} from a tree "
+                            f"with uncommitted changes: others were editing concurrently)."))
     blocks.append(("h2", "Measured wall time"))
     span = (max(lasts) - min(firsts)).total_seconds() if len(firsts) and len(lasts) else 0.0
     blocks.append(("p", f"Sum of the per-run times (render + solve) over all experiments at this "
