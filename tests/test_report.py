@@ -195,7 +195,7 @@ def _store(tmp_path, rows):
 
 def test_build_writes_pages_figures_index(tmp_path):
     rows = table5_3_rows(size=512)
-    rows += [row("fig5_12", 1000 + i, surface=s, lights="45x8", n_images=8, noise=nz, size=256,
+    rows += [row("fig5_12", 1000 + i, surface=s, lights="45x8", n_images=8, noise=nz, size=512,
                  mask=m, ne_mean=5 + 10 * nz + (2 if m == "RA" else 0) * nz * 10)
              for i, (s, nz, m) in enumerate((s, nz, m) for s in SURFS
                                             for nz in (0.0, 0.1, 0.2)

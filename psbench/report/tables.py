@@ -53,7 +53,7 @@ AVERAGES = {
                 "noise 0/10/20 % (the thesis's averaging). Fig. 5.11: mean NE vs t_Re over the "
                 "same surfaces, 8 lights, no noise.",
     "table5_3": "Mean over the five surfaces (semisphere, spheres, sombrero, mozart, penny), the "
-                "45-degree rings of 4 and 8 lights and noise 0/10/20 % (TS + shadows) for "
+                "45-degree rings of 4, 6, 8 and 12 lights and noise 0/10/20 % (TS + shadows) for "
                 "'all light sources'; the 45x4 runs only for '4 light sources'. Time = t_solve "
                 "(s) of psbench on this machine (the thesis: Matlab on a Core 2 Quad, 512^2).",
     "table5_4": "Mean NE over sombrero1-3, TS + shadows, 5 % noise, ordinary PS (mask None) on "
@@ -97,9 +97,9 @@ NOTES = {
                 "ground-truth highlight (specular term above a fraction of the clean image's "
                 "range; the thesis does not define it), so QF values are comparable in trend "
                 "only.",
-    "table5_3": "'All light sources' averages the 45x4 and 45x8 rings only (the 45x6 and 45x12 "
-                "rings would not fit the 20-minute budget at 512^2 on 2 cores). Times are "
-                "psbench's t_solve on a shared 2-core machine, the thesis's are Matlab on a "
+    "table5_3": "'All light sources' = 45-degree rings of 4, 6, 8 and 12 lights (the thesis "
+                "does not list its layouts; these are the image counts of Table 5.2); the ci "
+                "scale uses three of the five surfaces. Times are psbench's t_solve on a shared 2-core machine, the thesis's are Matlab on a "
                 "Core 2 Quad: compare ratios, not seconds. QF: see table5_2's note.",
     "table5_5": "The thesis's improvement row for eZsurface (11.6-14.3 %) is inconsistent with "
                 "its own NE row (9.65 -> 7.00 is 27.5 %); psbench computes improvements from "
@@ -115,10 +115,7 @@ NOTES = {
                 "least-squares residual, so the 'WPS reduces IE' verdicts are INCONCLUSIVE "
                 "until the harness stores the Eq. 2.30 value.",
     "table6_2": "Times on a shared 2-core machine (three repeats, medians); see table6_1.",
-    "fig4_4": "Full scale at 256 x 256.",
-    "fig5_12": "Full scale at 256 x 256; NL is xNL at 8 images.",
-    "fig5_13": "Full scale at 256 x 256.",
-    "fig5_14": "Full scale at 256 x 256.",
+    "fig5_12": "NL is its extension xNL at 8 images (NL-Sh is xNL-Sh).",
 }
 
 
