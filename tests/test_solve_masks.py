@@ -330,3 +330,15 @@ def test_pixel_scope_is_albedo_invariant():
     assert _flags(a) == [4]
     b = solve(img2, lay, mask="Th", th_scope="image")
     assert len(_flags(b)) == 8 or _flags(b) != [4]
+
+
+def test_object_scope_ignores_pixels_outside_the_object():
+    lay = ps.layout("45x8")
+    img, _, _, _ = _planted(k=8, hi=[1], sh=[4], top=3.0, size=12)
+    img[:, 0, 2] = 40.0  # a bright spot outside the object
+    om = np.ones((12, 12), bool)
+    om[0, 2] = False
+    im = solve(img, lay, mask="Th", th_scope="image", object_mask=om)
+    ob = solve(img, lay, mask="Th", th_scope="object", object_mask=om)
+    assert _flags(ob) == [1, 4]
+    assert _flags(im) != [1, 4]  # the spot inflates every image's range
