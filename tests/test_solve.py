@@ -149,6 +149,7 @@ def test_constant_images_are_a_plane():
     (dict(dilate_radius=-2), "dilate_radius"),
     (dict(kernel_size=14), "kernel_size"),
     (dict(banana=1), "unknown option"),
+    (dict(images=np.ones((8, 1, 6)), mask="Th-Sh"), "2x2"),
 ])
 def test_bad_input(kwargs, match):
     args = dict(images=np.random.default_rng(0).random((8, 6, 6)).astype(np.float32),

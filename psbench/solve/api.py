@@ -277,6 +277,9 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         if t in tokens and k != 4:
             raise PsbenchError(f"mask={mask!r}: {t} needs exactly 4 images, got {k}; use "
                                f"{'xNL' if t == 'NL' else 'RA or xNL'} for other counts")
+    if ("Sh" in tokens or want_height) and min(H, W) < 2:
+        raise PsbenchError(f"images of {H}x{W} pixels: the Sh mask and want_height integrate "
+                           "heights and need at least 2x2 pixels")
     if "xNL" in tokens and k < 4:
         raise PsbenchError(f"mask={mask!r}: xNL needs at least 4 images, got {k}")
     omask = as_mask(object_mask, (H, W), "object_mask")
