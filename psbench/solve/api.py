@@ -16,7 +16,12 @@ Before every PS solve Eq. 3.1's rule is applied: where fewer than three observat
 are valid the masked ones with the least residual of the *unmasked* least-squares
 solution are added back until three are used
 (:func:`psbench.solve.kernel.complete_three`). Every per-pixel solve goes through
-:func:`psbench.solve.kernel.wls`.
+:func:`psbench.solve.kernel.wls`. Caveat: with k = 4 lights the residual of the
+unmasked solution lies in the one-dimensional null space of S^T, r = a (a . I), so on
+a symmetric ring (|a_i| all equal) the four residuals of a pixel are equal in
+magnitude and Eq. 3.1 cannot rank them; ties go to the lowest light index (stable
+sort). This is why Th with 4 lights (which leaves < 3 observations at most pixels of
+the Torrance-Sparrow test scenes) can end above None.
 
 Mask names are joined by '-' (whitespace also accepted); a combination is the logical
 AND of validity. See :mod:`psbench.solve.masks` for the per-mask decisions (Th offset
