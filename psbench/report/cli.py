@@ -274,6 +274,12 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
                ("list", [f"{n}: {T.NOTES[n]}" for n in names if n in T.NOTES])]
     blocks += [("h2", "Pages"),
                ("links", [(f"{n}.html", f"{T.EXPERIMENTS[n]} ({n})") for n in names])]
+    other = "ci" if scale == "full" else None
+    if other and (out / other / "index.html").is_file():
+        blocks += [("h2", "Other scale"),
+                   ("links", [(f"{other}/index.html", f"the same report on the {other}-scale runs "
+                                                      f"(small images, fixed seeds; the CI gate's "
+                                                      f"data)")])]
     if panel_files:
         blocks += [("h2", "Image panels (one small scene rendered and solved by "
                           "psbench-report --panels, not from the store)"),
