@@ -569,6 +569,13 @@ def v_fig5_12(agg, rows=None):
     if "Th" in sl and "NL" in sl:
         out.append(_v(e, "Th is less noise-sensitive than NL (NL more noise-sensitive)",
                       sl["Th"] < sl["NL"], f"slopes Th {sl['Th']:.1f} vs NL {sl['NL']:.1f}"))
+    if "NL" in sl:
+        steep = max(sl, key=sl.get)
+        rank = ", ".join(f"{k} {v:.1f}" for k, v in sorted(sl.items(), key=lambda kv: -kv[1]))
+        out.append(_v(e, "NL is the most noise-sensitive of the selected masks (steepest NE vs "
+                         "noise; the thesis states NL > Th and calls RA very sensitive)",
+                      steep == "NL", f"steepest: {steep}; slopes (deg per unit noise): {rank}",
+                      undecided=steep != "NL" and sl[steep] - sl["NL"] < 1.0))
     if "RA" in s and "None" in s and len(s["RA"]):
         hi = [n for n in s["RA"].index if n > 0.15 and n in s["None"].index]
         lo = [n for n in s["RA"].index if n <= 0.05 and n in s["None"].index]
