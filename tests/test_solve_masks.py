@@ -295,8 +295,8 @@ def test_iteration_stops_when_masks_stop_changing(ts_semisphere):
 
 def test_th_offset_literal_equal_when_min_is_zero(ts_semisphere):
     surf, lay, sc = ts_semisphere
-    a = solve(sc.images, lay, mask="Th")
-    b = solve(sc.images, lay, mask="Th", th_offset=False)
+    a = solve(sc.images, lay, mask="Th")  # literal Eq. 3.2 (default)
+    b = solve(sc.images, lay, mask="Th", th_offset=True)
     assert np.array_equal(a.valid, b.valid)
 
     # with an ambient offset only the offset rule keeps the same mask (before Eq. 3.1)

@@ -57,7 +57,7 @@ NORMAL_MASKS = ("SS", "Re", "CS", "Hi", "Sh")
 SUBSET_MASKS = ("xNL", "RA", "CJ")
 
 #: extra keyword options of :func:`solve` and their defaults
-OPTIONS = dict(W_DEFAULTS, th_offset=True, sh_bias=None, integrate_method="poisson",
+OPTIONS = dict(W_DEFAULTS, th_offset=False, sh_bias=None, integrate_method="poisson",
                n_subsets=None, iter_tol=1e-3)
 
 
@@ -255,7 +255,8 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
     **opts
         ``dilate_radius`` (7), ``smooth_sigma`` (3), ``kernel_size`` (15),
         ``sigma_min`` (None = 1 % of the mean dynamic range), ``fwlse_tol`` (1e-3),
-        ``th_offset`` (True: Th bounds offset by i_min), ``sh_bias`` (shadow-map bias,
+        ``th_offset`` (False: literal Eq. 3.2; True: Th bounds offset by i_min, see
+        :mod:`psbench.solve.masks`), ``sh_bias`` (shadow-map bias,
         None = shadowmap default), ``integrate_method`` ("poisson"), ``n_subsets`` (RA),
         ``iter_tol`` (1e-3: also stop after a round that changed the mask of at most
         this fraction of the object pixels; 0: iterate until no mask changes, a

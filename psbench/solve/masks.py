@@ -9,11 +9,17 @@ a bool array of the images' shape. They work on any pixel layout: ``images`` is
 
 Decisions (psbench):
 
-* **Th offset (Eq. 3.2).** The thesis writes ``i < k_low (i_max - i_min)``. psbench
-  offsets both bounds by i_min: masked where ``i < i_min + k_low (i_max - i_min)`` or
-  ``i > i_min + k_up (i_max - i_min)``, so the bounds are fractions *of the range* and
-  do not move when a constant (ambient, dark level) is added. With shadows in the
-  images i_min = 0 and both readings agree; ``th_offset=False`` gives the literal rule.
+* **Th offset (Eq. 3.2).** The thesis writes ``i < k_low (i_max - i_min)`` and
+  ``i > k_up (i_max - i_min)``: the bounds are fractions of the range, not offset by
+  i_min. psbench keeps that literal rule by default (``th_offset=False``);
+  ``th_offset=True`` offsets both bounds by i_min (``i < i_min + k_low (i_max -
+  i_min)``), which is invariant to an added constant (ambient light, dark level).
+  Noiseless renders have i_min = 0 and both give the same masks; with noise the
+  image minimum is a negative noise extreme (about -4 sigma), which drags both
+  offset bounds down: shadows escape the lower bound and lit diffuse observations
+  exceed the upper one. On the five test surfaces (45x8, TS, 256 px) Th's mean NE
+  with offset / literal / None: 5 % noise 18.1 / 10.1 / 10.1 deg, 10 % noise
+  28.2 / 17.3 / 11.9 deg, 20 % noise 36.3 / 19.7 / 16.4 deg.
 * **Range scope** (``th_scope``): "image" (thesis: min/max of each whole image),
   "object" (min/max over the object mask), "robust" (1st-99th percentile over the
   object, so one specular spot does not set the range), "pixel" (albedo-invariant:
@@ -55,7 +61,7 @@ def _lambert_flat(b, S):
     return (S @ b.reshape(-1, 3).T).reshape((S.shape[0],) + P)
 
 
-def ranges(images, *, scope="image", object_mask=None, offset=True):
+def ranges(images, *, scope="image", object_mask=None, offset=False):
     """Dynamic ranges used by Th, Hi, CS (and NL scaling).
 
     Parameters
@@ -64,7 +70,7 @@ def ranges(images, *, scope="image", object_mask=None, offset=True):
     scope : {"image", "object", "robust", "pixel"}
     object_mask : (H, W) bool, optional
     offset : bool
-        Offset the Th bounds by i_min (psbench default) or not (literal Eq. 3.2).
+        Offset the Th bounds by i_min (True) or not (False, literal Eq. 3.2, default).
 
     Returns
     -------
