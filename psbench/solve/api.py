@@ -323,10 +323,6 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
             warnings.warn(msg, RuntimeWarning, stacklevel=2)
             info["warnings"].append(msg)
         tm.lap("ranges")
-    elif not images.any():
-        msg = "all images are zero: normals (0, 0, 1), albedo 0"
-        warnings.warn(msg, RuntimeWarning, stacklevel=2)
-        info["warnings"].append(msg)
     scale = rg["scale"] if rg is not None else 1.0
     sigma_min = o["sigma_min"] if o["sigma_min"] is not None else 0.01 * scale
 
@@ -638,6 +634,11 @@ def _cj_valid(images, S32, b, scale):
 def _finish(images, S32, b, valid, weights, omask, full, lay, name, method, iterations, thr,
             info, tm, want_height, o, truth):
     normals, albedo = kernel.split(b)
+    if not info["warnings"] and not albedo.any() and not images.any():
+        # (checked on the albedo first: a full pass over the images only when needed)
+        msg = "all images are zero: normals (0, 0, 1), albedo 0"
+        warnings.warn(msg, RuntimeWarning, stacklevel=3)
+        info["warnings"].append(msg)
     tm.lap("split")
     k, H, W = images.shape
     if info.pop("_plain_ls", False):
@@ -693,7 +694,17 @@ def _residual_ls(images, S):
     if k == 3:
         return np.zeros((H, W), dtype=np.float32)
     U = np.linalg.svd(np.asarray(S, dtype=np.float64), full_matrices=True)[0][:, 3:]
-    X = U.T.astype(np.float32) @ images.reshape(k, -1)
-    out = np.einsum("ij,ij->j", X, X)
+    U = np.ascontiguousarray(U.T, dtype=np.float32)  # (k - 3, k)
+    I2 = images.reshape(k, -1)
+    N = I2.shape[1]
+    out = np.empty(N, dtype=np.float32)
+    step = 4096  # keeps the (k - 3, step) block in cache
+    X = np.empty((k - 3, step), dtype=np.float32)
+    for lo in range(0, N, step):
+        hi = min(N, lo + step)
+        Xv = X[:, :hi - lo]
+        np.matmul(U, I2[:, lo:hi], out=Xv)
+        Xv *= Xv
+        Xv.sum(axis=0, out=out[lo:hi])
     np.sqrt(out, out=out)
     return out.reshape(H, W)
