@@ -1,0 +1,111 @@
+import cv2
+import numpy as np
+import pytest
+
+import psbench as ps
+from psbench.surfaces import SOMBRERO_LAMBDA, normals_from_height, pixel_grid
+
+
+@pytest.mark.parametrize("size", [64, 128])
+@pytest.mark.parametrize("name", ps.SURFACES)
+def test_every_surface_is_well_formed_and_deterministic(name, size):
+    s = ps.make_surface(name, size=size)
+    assert s.height.shape == (size, size) and s.height.dtype == np.float32
+    assert s.mask.shape == (size, size) and s.mask.dtype == bool and s.mask.any()
+    assert s.normals.shape == (size, size, 3) and s.normals.dtype == np.float32
+    assert np.isfinite(s.height).all() and np.isfinite(s.normals).all()
+    np.testing.assert_allclose(np.linalg.norm(s.normals, axis=-1), 1.0, atol=1e-5)
+    assert (s.normals[..., 2] >= 0).all()
+    again = ps.make_surface(name, size=size)
+    assert np.array_equal(s.height, again.height) and np.array_equal(s.normals, again.normals)
+
+
+@pytest.mark.parametrize("name", ["semisphere", "spheres", "sombrero1", "sombrero2", "sombrero3"])
+def test_analytic_normals_agree_with_height_gradient(name):
+    s = ps.make_surface(name, size=256)
+    numeric = normals_from_height(s.height.astype(np.float64))
+    # compare on the interior, away from silhouettes where the slope is discontinuous
+    ok = cv2.erode(s.mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    steep = cv2.dilate((s.zenith >= 60).astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    ok &= ~steep
+    cosang = np.clip((numeric[ok] * s.normals[ok]).sum(-1), -1, 1)
+    assert np.degrees(np.arccos(cosang)).mean() < 0.5
+
+
+def test_sombrero_zeniths_follow_the_peaks():
+    z = [ps.make_surface(f"sombrero{i}", size=512).zenith.max() for i in (1, 2, 3)]
+    assert abs(z[1] - 66.0) < 0.5
+    assert z[0] < z[1] < z[2]
+    assert SOMBRERO_LAMBDA > 0
+    assert np.array_equal(ps.make_surface("sombrero", 64).height,
+                          ps.make_surface("sombrero2", 64).height)
+
+
+def test_semisphere_is_a_hemisphere():
+    size = 128
+    s = ps.make_surface("semisphere", size=size)
+    x, y = np.broadcast_arrays(*pixel_grid((size, size)))
+    r2 = x ** 2 + y ** 2
+    R = 0.45 * size
+    inside = s.mask & (r2 < (0.95 * R) ** 2)
+    np.testing.assert_allclose(s.height[inside], np.sqrt(R ** 2 - r2[inside]), rtol=1e-4, atol=1e-3)
+
+
+@pytest.mark.parametrize("name", ["mozart", "penny", "spheres"])
+def test_bust_coin_and_spheres_have_steep_sides_that_cast_shadows(name):
+    s = ps.make_surface(name, size=128)
+    assert (s.zenith[s.mask] > 60).any()
+    shadow = ps.shadow_map(s.height, ps.layout("60x4"), mask=s.mask)
+    assert shadow.any(axis=0).mean() > 0.005
+
+
+def test_surface_from_height_plane_and_paraboloid():
+    H, W = 40, 50
+    x, y = np.broadcast_arrays(*pixel_grid((H, W)))
+    plane = 0.5 * x - 0.25 * y
+    s = ps.surface_from_height(plane)
+    want = np.array([-0.5, 0.25, 1.0]) / np.linalg.norm([-0.5, 0.25, 1.0])
+    np.testing.assert_allclose(s.normals.reshape(-1, 3), np.broadcast_to(want, (H * W, 3)), atol=1e-5)
+    para = 10 - 0.01 * (x ** 2 + y ** 2)
+    sp = ps.surface_from_height(para, name="bowl")
+    n = sp.normals[H // 2 - 5, W // 2 + 7]  # x = 7.5, y = 5.5 (grid is centred between pixels)
+    xx, yy = x[H // 2 - 5, W // 2 + 7], y[H // 2 - 5, W // 2 + 7]
+    g = np.array([0.02 * xx, 0.02 * yy, 1.0])
+    np.testing.assert_allclose(n, g / np.linalg.norm(g), atol=1e-4)
+    assert sp.name == "bowl"
+
+
+def test_surface_from_file_npy_and_png(tmp_path):
+    h = ps.make_surface("semisphere", 64).height
+    np.save(tmp_path / "h.npy", h)
+    s = ps.surface_from_file(tmp_path / "h.npy")
+    np.testing.assert_allclose(s.height, h, atol=1e-6)
+    png = (h / h.max() * 65535).round().astype(np.uint16)
+    cv2.imwrite(str(tmp_path / "h.png"), png)
+    sp = ps.surface_from_file(tmp_path / "h.png", scale=float(h.max()))
+    np.testing.assert_allclose(sp.height, h, atol=float(h.max()) / 65535 + 1e-4)
+    assert sp.name == "h"
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: ps.make_surface("teapot"), "valid choices"),
+    (lambda: ps.make_surface("semisphere", size=4), "size"),
+    (lambda: ps.surface_from_height(np.full((8, 8), np.nan)), "NaN"),
+    (lambda: ps.surface_from_height(np.zeros(8)), "shape"),
+    (lambda: ps.surface_from_height(np.zeros((8, 8)), mask=np.ones((4, 4), bool)), "mask"),
+    (lambda: ps.surface_from_file("heights.txt"), ".npy or .png"),
+    (lambda: ps.surface_from_file("missing.npy"), "does not exist"),
+])
+def test_bad_input_gives_clear_errors(call, words):
+    with pytest.raises(ps.PsbenchError) as err:
+        call()
+    assert words in str(err.value)
+
+
+def test_preview_command_writes_pngs(tmp_path):
+    from psbench.surfaces import main
+
+    main(["--out", str(tmp_path), "--size", "32", "--names", "semisphere", "penny"])
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["penny.png", "semisphere.png"]
+    assert cv2.imread(str(tmp_path / "penny.png")) is not None
