@@ -382,10 +382,18 @@ def v_table6_1(agg, rows=None):
     if agg is None or agg.empty:
         return [_nodata(e, "WPS reduces IE w.r.t. PS for every weight"),
                 _nodata(e, "e weights give the lowest IE on real images")]
-    for lay in sorted(agg["part"].unique()):
+    eq230 = lookup(agg, "info", "WPS IE is Eq. 2.30 (1) or Eq. 2.29 (0)", "value") == 1.0
+    for lay in sorted(p for p in agg["part"].unique() if p != "info"):
         ov = {r: v for r, v in _part(agg, lay, "overall").items()}
         wps = {k: v for k, v in ov.items() if k != "None"}
-        if wps:
+        if wps and eq230:
+            out.append(_v(e, f"WPS reduces IE w.r.t. 2Z PS for every weight ({lay})",
+                          all(v < 100 for v in wps.values()),
+                          ", ".join(f"{k} {_f(v, 1)} %" for k, v in wps.items())
+                          + " (Eq. 2.30 IE of WPS vs Eq. 2.29 IE of PS)"))
+            out.append(_lowest(e, f"e weights give the lowest IE on real images ({lay})", wps,
+                               "e", margin=0.5, unit="%"))
+        elif wps:
             # The store's ie_* of a WPS row is Eq. 2.29 over all images with the fused
             # normals; the least-squares PS solution minimizes exactly that residual, so
             # no WPS row can be below 100 % under it. The thesis's Table 6.1 uses the
