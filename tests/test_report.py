@@ -252,3 +252,30 @@ def test_wall_time_is_read_from_the_store(tmp_path):
     idx = (tmp_path / "rep" / "index.md").read_text()
     assert "2026-01-01 01:00:00" in idx and "2026-01-01 01:00:09" in idx
     assert "0.3" in idx
+
+
+def test_table6_1_uses_eq_2_30_for_wps_rows():
+    rows, i = [], 0
+    for data, base in (("/x/diligent/cat", 2.0), ("/x/sim_rig", 6.0)):
+        for lay in ("30x4+60x4", "30x8+60x8"):
+            rows.append(row("table6_1", i, data=data, lights=lay, ie_l2=base, t_solve=1.0))
+            for w in tv.WPS_WEIGHTS:
+                rows.append(row("table6_1", i + 1, data=data, lights=lay, method="wps", weight=w,
+                                ie_l2=base * 1.2, ie_weighted=base * (0.5 if w == "e" else 0.6),
+                                t_solve=3.0))
+                i += 2
+    agg = T.aggregate("table6_1", pd.DataFrame(rows))
+    assert T.lookup(agg, "30x4+60x4", "e", "cat") == pytest.approx(50.0)
+    assert T.lookup(agg, "30x4+60x4", "eZsource", "overall") == pytest.approx(60.0)
+    vs = {v.claim: v.status for v in V.verdicts("table6_1", agg)}
+    assert vs["WPS reduces IE w.r.t. 2Z PS for every weight (30x8+60x8)"] == V.SUPPORTED
+    assert vs["e weights give the lowest IE on real images (30x4+60x4)"] == V.SUPPORTED
+    # without ie_weighted the WPS rows fall back to Eq. 2.29 (120 %): not decidable
+    old = pd.DataFrame(rows).drop(columns="ie_weighted")
+    agg2 = T.aggregate("table6_1", old)
+    assert T.lookup(agg2, "30x4+60x4", "e", "cat") == pytest.approx(120.0)
+    vs2 = {v.claim: v.status for v in V.verdicts("table6_1", agg2)}
+    assert vs2["WPS reduces IE w.r.t. 2Z PS for every weight (30x8+60x8)"] == V.INCONCLUSIVE
+    t62 = T.aggregate("table6_2", pd.DataFrame(rows))
+    assert T.lookup(t62, "", "e", "30x8+60x8") == pytest.approx(3.0)
+    assert {v.status for v in V.verdicts("table6_2", t62)} == {V.SUPPORTED}
