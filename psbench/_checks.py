@@ -66,3 +66,19 @@ def as_normals(normals, name="normals", shape=None):
     if not np.isfinite(n).all():
         raise PsbenchError(f"{name} holds NaN/inf values")
     return n
+
+
+def as_S(lights, k=None, name="lights"):
+    """(k, 3) float64 illumination matrix from a Layout (its ``.S``) or an array.
+
+    ``k``, when given, is the number of images the lights must match.
+    """
+    S = getattr(lights, "S", lights)
+    S = np.asarray(S, dtype=np.float64)
+    if S.ndim != 2 or S.shape[1] != 3:
+        raise PsbenchError(f"{name} must be a Layout or a (k, 3) array, got shape {S.shape}")
+    if k is not None and S.shape[0] != k:
+        raise PsbenchError(f"{name} has {S.shape[0]} lights but images has {k} images")
+    if not np.isfinite(S).all():
+        raise PsbenchError(f"{name} holds NaN/inf values")
+    return S

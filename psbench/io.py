@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from ._checks import PsbenchError, as_images, as_mask
+from ._fs import atomic_write
 
 __all__ = ["Dataset", "PsbenchWarning", "read_images", "read_image", "write_image",
            "read_dataset", "write_dataset", "write_outputs", "encode_normals",
@@ -654,8 +655,7 @@ def write_ply(path, height, mask=None, *, binary=True):
     header = (f"ply\nformat {fmt} 1.0\ncomment psbench height map mesh (pixel units)\n"
               f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
               f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
-    tmp = p.with_name(p.name + ".tmp")
-    with open(tmp, "wb") as f:
+    def write(f):
         f.write(header.encode("ascii"))
         if binary:
             f.write(verts.astype("<f4").tobytes())
@@ -666,7 +666,8 @@ def write_ply(path, height, mask=None, *, binary=True):
         else:
             np.savetxt(f, verts, fmt="%.6g")
             np.savetxt(f, np.hstack([np.full((len(faces), 1), 3), faces]), fmt="%d")
-    os.replace(tmp, p)
+
+    atomic_write(p, write, fsync=False)
     return len(verts), len(faces)
 
 
@@ -695,9 +696,7 @@ def write_outputs(path, result, *, mask=None, ply=True, binary_ply=True):
     written = []
 
     def save_npy(name, arr):
-        tmp = out / (name + ".tmp.npy")
-        np.save(tmp, arr)
-        os.replace(tmp, out / name)
+        atomic_write(out / name, lambda fh: np.save(fh, arr), fsync=False)
         written.append(name)
 
     def save_png(name, img, bits=16):

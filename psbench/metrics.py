@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import PsbenchError, as_mask, choice
+from ._checks import PsbenchError, as_mask, as_S, choice
 
 __all__ = [
     "normal_error_map", "normal_error", "normal_error_stats", "ne_by_zenith",
@@ -54,17 +54,7 @@ def _mean_over(values, mask):
     return float(v.mean()) if v.size else float("nan")
 
 
-def _S_of(lights, k=None, name="lights"):
-    """(k, 3) float64 illumination matrix from a Layout or an array."""
-    S = getattr(lights, "S", lights)
-    S = np.asarray(S, dtype=np.float64)
-    if S.ndim != 2 or S.shape[1] != 3:
-        raise PsbenchError(f"{name} must be a Layout or a (k, 3) array, got shape {S.shape}")
-    if k is not None and S.shape[0] != k:
-        raise PsbenchError(f"{name} has {S.shape[0]} lights but images has {k} images")
-    if not np.isfinite(S).all():
-        raise PsbenchError(f"{name} holds NaN/inf values")
-    return S
+
 
 
 # ----------------------------------------------------------------------------- NE
@@ -195,7 +185,7 @@ def _b_and_S(result, lights, k, shape):
         b = _normals(result, "result", shape).astype(np.float64)
     if lights is None:
         raise PsbenchError("lights are required when result has no .lights")
-    return b, _S_of(lights, k)
+    return b, as_S(lights, k)
 
 
 def _norm(R, norm, average, axis=0):
@@ -308,7 +298,7 @@ def _ring_ies(images, result, lights, weights, norm, clamp, average):
             f"weights must have shape {(len(rings), H, W)} (rings, H, W), got {w.shape}")
     ring_n = getattr(result, "ring_normals", None)
     ring_a = getattr(result, "ring_albedo", None)
-    S = _S_of(lights, k)
+    S = as_S(lights, k)
     out = np.empty((len(rings), H, W))
     for j, idx in enumerate(rings):
         if ring_n is not None and ring_a is not None:

@@ -43,13 +43,13 @@ All functions are pure (no caches, no global state) and vectorized.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ._checks import PsbenchError, as_mask, choice
+from ._fs import atomic_write
 
 __all__ = ["Surface", "SURFACES", "SOMBRERO_LAMBDA", "SOMBRERO_PEAKS", "make_surface",
            "surface_from_height", "surface_from_file", "normals_from_height",
@@ -600,13 +600,7 @@ def write_preview(surface, path):
         ax.set_xticks([])
         ax.set_yticks([])
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        fig.savefig(tmp, format="png")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write(path, lambda fh: fig.savefig(fh, format="png"), fsync=False)
     return path
 
 

@@ -16,7 +16,6 @@ re-running it replaces its file, and readers keep the latest row (largest ``utc`
 from __future__ import annotations
 
 import os
-import secrets
 import time
 import warnings
 from pathlib import Path
@@ -26,6 +25,7 @@ import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
 from .._checks import PsbenchError
+from .._fs import atomic_write
 from .schema import COLUMNS, META_KEY, REQUIRED, SCHEMA, SCHEMA_VERSION, conform, row_table
 
 __all__ = ["default_root", "run_path", "write_row", "write_rows", "stored_status", "read_run",
@@ -56,21 +56,7 @@ def run_path(root, sweep, run_id) -> Path:
 
 
 def _atomic_write(table: pa.Table, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.parent / f".{path.name}.tmp.{os.getpid()}.{secrets.token_hex(4)}"
-    try:
-        with open(tmp, "wb") as fh:
-            pq.write_table(table, fh, compression="zstd")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise
-    return path
+    return atomic_write(path, lambda fh: pq.write_table(table, fh, compression="zstd"))
 
 
 def write_row(root, row: dict) -> Path:

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images
+from .._checks import PsbenchError, as_images, as_S
 from . import kernel
 
 __all__ = ["n_ransac", "ransac", "cj", "xnl", "xnl_pattern", "xnl_resolve", "null_vector",
@@ -43,16 +43,7 @@ CJ_THRESHOLD = 0.1
 
 # --------------------------------------------------------------------------- helpers
 def _as_S(S, k=None, name="S"):
-    if hasattr(S, "S") and hasattr(S, "directions"):  # a Layout
-        S = S.S
-    S = np.asarray(S, dtype=np.float64)
-    if S.ndim != 2 or S.shape[1] != 3:
-        raise PsbenchError(f"{name} must have shape (k, 3), got {S.shape}")
-    if k is not None and S.shape[0] != k:
-        raise PsbenchError(f"{name} has {S.shape[0]} rows but images hold {k} images")
-    if not np.isfinite(S).all():
-        raise PsbenchError(f"{name} holds NaN/inf values")
-    return S
+    return as_S(S, k, name)
 
 
 def dynamic_range(images):

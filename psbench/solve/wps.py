@@ -53,12 +53,13 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import PsbenchError, as_images, as_mask, as_normals, choice
 from . import kernel
+from .api import Result
 
 __all__ = ["wps", "WEIGHTS", "DEFAULT_WEIGHT", "sig", "surface_factor", "oracle_weights",
            "fuse"]
@@ -93,58 +94,9 @@ def surface_factor(zenith_deg, rank, *, z_scale=90.0):
 
 
 # --------------------------------------------------------------------------- Result
-_RESULT_CLS = None
-
-
-def _result_class():
-    """psbench.solve.api.Result extended with the per-ring fields (cached)."""
-    global _RESULT_CLS
-    if _RESULT_CLS is not None:
-        return _RESULT_CLS
-    try:
-        from .api import Result as Base
-    except Exception:  # pragma: no cover - solver not importable
-        Base = None
-    if Base is None:
-        @dataclass(eq=False)
-        class WPSResult:
-            normals: np.ndarray
-            albedo: np.ndarray
-            valid: np.ndarray
-            weights: np.ndarray | None
-            residual: np.ndarray
-            height: np.ndarray | None
-            timings: dict
-            lights: object
-            mask: str
-            method: str
-            iterations: int = 0
-            thresholds: dict = field(default_factory=dict)
-            info: dict = field(default_factory=dict)
-            ring_normals: np.ndarray | None = None
-            ring_albedo: np.ndarray | None = None
-            ring_residual: np.ndarray | None = None
-            weight: str = DEFAULT_WEIGHT
-            binary: bool = False
-
-            @property
-            def b(self):
-                return self.normals * self.albedo[..., None]
-    else:
-        @dataclass(eq=False, repr=False)
-        class WPSResult(Base):
-            ring_normals: np.ndarray | None = None
-            ring_albedo: np.ndarray | None = None
-            ring_residual: np.ndarray | None = None
-            weight: str = DEFAULT_WEIGHT
-            binary: bool = False
-
-            def __repr__(self):
-                H, W = self.albedo.shape
-                return (f"WPSResult(weight={self.weight!r}, binary={self.binary}, "
-                        f"mask={self.mask!r}, rings={self.weights.shape[0]}, size={H}x{W}, "
-                        f"total={self.timings.get('total', float('nan')):.3f}s)")
-    WPSResult.__doc__ = """Output of :func:`psbench.solve.wps.wps`.
+@dataclass(eq=False, repr=False)
+class WPSResult(Result):
+    """Output of :func:`psbench.solve.wps.wps`.
 
     The fields of :class:`psbench.solve.Result` (``normals (H, W, 3)``, ``albedo``,
     ``valid (k, H, W)``, ``residual (H, W)`` = L2 norm of the fused solution's residual
@@ -154,8 +106,18 @@ def _result_class():
     ``ring_residual (rings, H, W)`` (RMS residual e_j of each ring's own solution),
     ``weight`` and ``binary``.
     """
-    _RESULT_CLS = WPSResult
-    return WPSResult
+
+    ring_normals: np.ndarray | None = None
+    ring_albedo: np.ndarray | None = None
+    ring_residual: np.ndarray | None = None
+    weight: str = DEFAULT_WEIGHT
+    binary: bool = False
+
+    def __repr__(self):
+        H, W = self.albedo.shape
+        return (f"WPSResult(weight={self.weight!r}, binary={self.binary}, "
+                f"mask={self.mask!r}, rings={self.weights.shape[0]}, size={H}x{W}, "
+                f"total={self.timings.get('total', float('nan')):.3f}s)")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -574,7 +536,7 @@ def wps(images, lights, *, weight=DEFAULT_WEIGHT, binary=False, mask="None", obj
         height = np.asarray(integrate(normals, None if full else omask), dtype=np.float32)
     tm["outputs"] = time.perf_counter() - t
     tm["total"] = time.perf_counter() - t0
-    cls = _result_class()
+    cls = WPSResult
     return cls(normals=normals, albedo=albedo, valid=valid, weights=weights, residual=resid,
                height=height, timings=tm, lights=lay, mask=mask_name, method="wps",
                iterations=int(iterations), thresholds=thr_used, info=info,
