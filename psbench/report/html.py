@@ -7,8 +7,6 @@ A page is a list of blocks: ``("h1"|"h2"|"h3", text)``, ``("p", text)``,
 from __future__ import annotations
 
 import html as _html
-import os
-import secrets
 from pathlib import Path
 
 import pandas as pd
@@ -24,22 +22,10 @@ pre{background:#f6f6f6;padding:.5em;overflow-x:auto;font-size:12px} .small{font-
 
 
 def write_atomic(path, data) -> Path:
-    """Write text or bytes to ``path`` via a temporary file and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.parent / f".{path.name}.tmp.{os.getpid()}.{secrets.token_hex(4)}"
-    mode = "wb" if isinstance(data, (bytes, bytearray)) else "w"
-    try:
-        with open(tmp, mode, **({} if mode == "wb" else {"encoding": "utf-8"})) as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise
-    return path
+    """Write text or bytes to ``path`` atomically (:func:`psbench._fs.atomic_write`)."""
+    from psbench._fs import atomic_write
+
+    return atomic_write(path, data, fsync=False)
 
 
 def save_figure(fig, path, dpi=80, palette=False) -> Path:
