@@ -372,13 +372,17 @@ def _mozart(size):
     neck = _dome(u, v, 0.0, -0.45, 0.19, 0.40, 0.26)
     bust = _dome(u, v, 0.0, -1.20, 0.95, 0.68, 0.34)
     collar = 0.025 * _gauss(u, v, 0.0, -0.62, 0.35, 0.03) * (bust > 0)
-    z = _smax(head, ears, 80.0)
-    z = _smax(z, hair, 60.0)
-    z = _smax(z, neck, 60.0)
-    z = _smax(z, bust + collar, 60.0)
-    z = np.maximum(z, 0.0)
-    # the log-sum-exp leaves a tiny positive offset on the plane; remove it
-    z = np.where(z < 0.004, 0.0, z)
+    def blend(*parts):
+        z = _smax(parts[0], parts[1], 80.0)
+        for part in parts[2:]:
+            z = _smax(z, part, 60.0)
+        return z
+
+    # the log-sum-exp blend lifts the plane (where every part is 0) by a constant: take
+    # that level off so the background plane sits at height 0 (beside the face, where the
+    # hair term is negative, the plane dips gently below 0, by about 1 % of the bust height)
+    plane = float(blend(*([np.zeros(1)] * 5))[0])
+    z = blend(head, ears, hair, neck, bust + collar) - plane
     height = z * half
     mask = np.ones((size, size), dtype=bool)
     return _finish("mozart", height, mask, normals_from_height(height))

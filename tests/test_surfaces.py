@@ -109,3 +109,10 @@ def test_preview_command_writes_pngs(tmp_path):
     files = sorted(p.name for p in tmp_path.iterdir())
     assert files == ["penny.png", "semisphere.png"]
     assert cv2.imread(str(tmp_path / "penny.png")) is not None
+
+
+@pytest.mark.parametrize("name", ["mozart", "penny", "spheres"])
+def test_background_plane_is_at_height_zero(name):
+    s = ps.make_surface(name, size=96)
+    assert s.mask[0, 0] and abs(float(s.height[0, 0])) < 1e-4
+    assert np.allclose(s.normals[0, 0], (0, 0, 1))
