@@ -104,9 +104,9 @@ NOTES = {
     "table5_5": "The thesis's improvement row for eZsurface (11.6-14.3 %) is inconsistent with "
                 "its own NE row (9.65 -> 7.00 is 27.5 %); psbench computes improvements from "
                 "its NE values.",
-    "table6_1": "psbench's real folders are not the thesis's objects: a simulated-rig capture "
-                "of the penny (psbench-capture rig=sim + psbench-calibrate all) and the "
-                "DiLiGenT cat and bear. DiLiGenT's lights reach only ~43 deg zenith, so its "
+    "table6_1": "psbench's real folders are not the thesis's objects: three simulated-rig "
+                "captures (penny, mozart, spheres; TS; psbench-capture rig=sim + "
+                "psbench-calibrate all, in results/simrig) and the DiLiGenT cat and bear. DiLiGenT's lights reach only ~43 deg zenith, so its "
                 "'60 deg' ring is its outermost lights; a missing folder makes its runs fail "
                 "(listed on the page). Rows stored before the harness recorded ie_weighted (Eq. "
                 "2.30) fall back to Eq. 2.29 for WPS (part 'info' says which), under which WPS "
