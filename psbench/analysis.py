@@ -245,19 +245,8 @@ def ne_vs_image_count(surface="sombrero2", counts=(4, 6, 8, 12, 16, 24, 32), *, 
     pandas.DataFrame
         Columns ``surface, kind, zenith, count, lights, ne``.
     """
-    import pandas as pd
-    from .lights import layout
-
-    surf = _surface(surface, size)
-    rows = []
-    for kind in _seq(kinds):
-        for n in _seq(counts):
-            lay = layout(_ring(zenith, n))
-            sc = _render(surf, lay, kind, noise, seed)
-            res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
-            rows.append(dict(surface=_sname(surf, surface), kind=kind, zenith=float(zenith),
-                             count=int(n), lights=lay.name, ne=_ne(res.normals, surf)))
-    return pd.DataFrame(rows)
+    return ne_vs_source_zenith(surface, zeniths=(zenith,), counts=counts, kinds=kinds,
+                               size=size, noise=noise, seed=seed, mask=mask)
 
 
 # ----------------------------------------------------------------------------- Figs. 4.4, 4.7
