@@ -239,3 +239,16 @@ def test_cj_result_valid():
     assert res.valid[:, 0, 0].all()
     assert np.flatnonzero(~res.valid[:, 3, 3]).tolist() == [2]
     assert np.allclose(res.normals[3, 3], n, atol=1e-4)
+
+
+def test_unmasked_residual_is_lazy_but_exact():
+    import psbench as ps
+
+    surf = ps.make_surface("sombrero2", 48)
+    lay = ps.layout("30x4+60x4")
+    sc = ps.render(surf, lay, noise=0.05, seed=1)
+    res = ps.solve(sc.images, lay, mask="None", object_mask=surf.mask)
+    assert "residual" not in res.timings  # not computed during the solve
+    want = np.sqrt(((sc.images - np.einsum("kc,hwc->khw", lay.S, res.b)) ** 2).sum(0))
+    np.testing.assert_allclose(res.residual, want, rtol=1e-4, atol=1e-5)
+    assert res.residual is res.residual  # computed once, then kept

@@ -61,6 +61,27 @@ OPTIONS = dict(W_DEFAULTS, th_offset=False, sh_bias=None, integrate_method="pois
                n_subsets=None, iter_tol=1e-3)
 
 
+class _Lazy:
+    """A :class:`Result` field that may be given as a zero-argument function: it is
+    computed on first access and then kept (the unmasked residual map costs as much as
+    the whole plain least-squares solve, and many callers never read it)."""
+
+    def __set_name__(self, owner, name):
+        self.slot = "_lazy_" + name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            raise AttributeError(self.slot)  # class access: the field has no default
+        value = obj.__dict__[self.slot]
+        if callable(value):
+            value = value()
+            obj.__dict__[self.slot] = value
+        return value
+
+    def __set__(self, obj, value):
+        obj.__dict__[self.slot] = value
+
+
 @dataclass(eq=False)
 class Result:
     """Output of :func:`solve`.
@@ -104,7 +125,7 @@ class Result:
     albedo: np.ndarray
     valid: np.ndarray
     weights: np.ndarray | None
-    residual: np.ndarray
+    residual: np.ndarray = _Lazy()
     height: np.ndarray | None
     timings: dict
     lights: object
@@ -641,16 +662,22 @@ def _finish(images, S32, b, valid, weights, omask, full, lay, name, method, iter
         info["warnings"].append(msg)
     tm.lap("split")
     k, H, W = images.shape
+    out = None if full else ~omask
     if info.pop("_plain_ls", False):
-        resid = _residual_ls(images, S32)
+        # computed when first read (Result.residual is lazy for the unmasked solve)
+        def resid():
+            r = _residual_ls(images, S32)
+            if out is not None:
+                r[out] = 0.0
+            return r
     else:
         resid = _residual(images, b, S32, None if valid.all() else valid)
-    tm.lap("residual")
+        if out is not None:
+            resid[out] = 0.0
+        tm.lap("residual")
     if not full:
-        out = ~omask
         normals[out] = (0.0, 0.0, 1.0)
         albedo[out] = 0.0
-        resid[out] = 0.0
         if not valid[:, out].all():
             valid[:, out] = True
         if weights is not None:
