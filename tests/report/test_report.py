@@ -9,9 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from psbench.experiments import table5_2 as T52
+from psbench.experiments import table5_3 as T53
+from psbench.experiments import table5_5 as T55
 from psbench.harness.store import write_rows
+from psbench.report import aggregates as A
 from psbench.report import tables as T
-from psbench.report import thesis_values as tv
 from psbench.report import verdicts as V
 from psbench.report.cli import build, main, pivot_part
 
@@ -39,14 +42,14 @@ def table5_3_rows(ne=None, size=40, time=None):
     ne = dict(ne or {})
     rows = []
     i = 0
-    base = {m: tv.value("table5_3", "all", m, "ne") for m in tv.T53_ALL_MASKS}
-    base.update({m: tv.value("table5_3", "four", m, "ne") for m in ("NL-Re", "NL-Re-Sh", "CJ")})
-    four = {m: tv.value("table5_3", "four", m, "ne") for m in ("None", "RA")}
+    base = {m: T53.THESIS["all"][m]["ne"] for m in T53.ALL_MASKS}
+    base.update({m: T53.THESIS["four"][m]["ne"] for m in ("NL-Re", "NL-Re-Sh", "CJ")})
+    four = {m: T53.THESIS["four"][m]["ne"] for m in ("None", "RA")}
     base.update(ne)
     for s_i, s in enumerate(SURFS):
         for lights, n in (("45x4", 4), ("45x8", 8)):
             for noise in (0.0, 0.1, 0.2):
-                masks = list(tv.T53_ALL_MASKS) + (["NL-Re", "NL-Re-Sh", "CJ"] if n == 4 else [])
+                masks = list(T53.ALL_MASKS) + (["NL-Re", "NL-Re-Sh", "CJ"] if n == 4 else [])
                 for m in masks:
                     off = 0.1 * (s_i - 2) + noise
                     v = four[m] if (n == 4 and m in four and m not in ne) else base[m]
@@ -59,30 +62,37 @@ def table5_3_rows(ne=None, size=40, time=None):
     return rows
 
 
+def _thesis(name, part, row, column):
+    f = T.thesis_frame(name)
+    m = f[(f["part"] == part) & (f["row"] == row) & (f["column"] == column)]
+    assert len(m) == 1, (name, part, row, column)
+    v = m["value"].iloc[0]
+    return None if v is None or v != v else v
+
+
 def test_thesis_values_transcribed():
-    assert tv.value("table5_3", "all", "Th-Hi-Re-Sh", "ne") == 8.28
-    assert tv.value("table5_3", "four", "RA", "ne") == 17.72
-    assert tv.value("table5_3", "all", "None", "qf_hi") is None
-    assert tv.value("table5_4", "average", "35x8+65x8", "ne") == 5.33
-    assert tv.value("table5_5", "ne", "2Z/eZsourceZsurface", "16") == 5.64
-    assert tv.value("table5_6", "", "binary", "mean") == 5.19
-    assert tv.value("table6_1", "30x8+60x8", "e", "overall") == 68.4
-    assert tv.value("table6_2", "", "eZsurface", "30x4+60x4") == 3.06
-    assert tv.value("table2_1", "", "4", "30") == 2.4495
-    assert tv.value("table5_2", "", "k_low", "12") == 0.08
-    assert tv.t_re_formula(30, 8) == 30 and tv.t_re_formula(60, 8) == 15
-    with pytest.raises(KeyError, match="not transcribed"):
-        tv.value("table5_3", "all", "nonexistent", "ne")
-    f = tv.frame("table5_3")
-    assert len(f) == 5 * (len(tv.T53_ALL_MASKS) + len(tv.T53_FOUR_MASKS))
-    assert set(f.columns) == {"table", "part", "row", "column", "value"}
+    assert _thesis("table5_3", "all", "Th-Hi-Re-Sh", "ne") == 8.28
+    assert _thesis("table5_3", "four", "RA", "ne") == 17.72
+    assert _thesis("table5_3", "all", "None", "qf_hi") is None
+    assert _thesis("table5_4", "average", "35x8+65x8", "ne") == 5.33
+    assert _thesis("table5_5", "ne", "2Z/eZsourceZsurface", "16") == 5.64
+    assert _thesis("table5_6", "", "binary", "mean") == 5.19
+    assert _thesis("table6_1", "30x8+60x8", "e", "overall") == 68.4
+    assert _thesis("table6_2", "", "eZsurface", "30x4+60x4") == 3.06
+    assert _thesis("table2_1", "", "4", "30") == 2.4495
+    assert _thesis("table5_2", "", "k_low", "12") == 0.08
+    assert T52.t_re_formula(30, 8) == 30 and T52.t_re_formula(60, 8) == 15
+    f = T.thesis_frame("table5_3")
+    assert len(f) == 5 * (len(T53.ALL_MASKS) + len(T53.FOUR_MASKS))
+    assert list(f.columns) == ["part", "row", "column", "value"]
+    assert T.thesis_frame("fig4_6").empty and T.thesis_frame("no_such_experiment").empty
 
 
 def test_table2_1_cond_matches_theory():
     # cond of a single ring: max(sqrt(k/2) sin z, sqrt(k) cos z) / min(...)
     for z in (5, 15, 30, 45, 60):
         s, c = np.sin(np.radians(z)) / np.sqrt(2), np.cos(np.radians(z))
-        assert max(s, c) / min(s, c) == pytest.approx(tv.value("table2_1", "", "8", str(z)),
+        assert max(s, c) / min(s, c) == pytest.approx(_thesis("table2_1", "", "8", str(z)),
                                                       abs=1e-4)
 
 
@@ -90,10 +100,10 @@ def test_aggregate_table5_3_means_and_parts():
     df = pd.DataFrame(table5_3_rows())
     agg = T.aggregate("table5_3", df)
     # 'all' part: mean over 5 surfaces x 2 layouts x 3 noises; offsets average to +0.1
-    assert T.lookup(agg, "all", "None", "ne") == pytest.approx((14.78 + 15.18) / 2 + 0.1)
+    assert A.lookup(agg, "all", "None", "ne") == pytest.approx((14.78 + 15.18) / 2 + 0.1)
     assert agg[(agg["part"] == "all") & (agg["row"] == "Th")]["n"].iloc[0] == 30
     # 'four' part: only the 4-image rows
-    assert T.lookup(agg, "four", "CJ", "ne") == pytest.approx(14.14 + 0.1)
+    assert A.lookup(agg, "four", "CJ", "ne") == pytest.approx(14.14 + 0.1)
     assert agg[(agg["part"] == "four") & (agg["row"] == "None")]["n"].iloc[0] == 15
     assert "CJ" not in set(agg[agg["part"] == "all"]["row"])
     cmp = T.compare("table5_3", agg)
@@ -135,7 +145,7 @@ def test_verdicts_follow_the_numbers():
     vs3 = {v.claim: v for v in V.verdicts("table5_3", agg3)}
     assert vs3["Th-Hi-Re-Sh has the lowest NE (all light sources)"].status == V.INCONCLUSIVE
     # no data -> INCONCLUSIVE everywhere, never an exception
-    for name in T.EXPERIMENTS:
+    for name in T.names():
         for v in V.verdicts(name, T.aggregate(name, pd.DataFrame())):
             assert v.status == V.INCONCLUSIVE
 
@@ -150,7 +160,7 @@ def test_table5_5_rows_and_improvement():
                             ne_mean=ne["1Z/None"]))
             rows.append(row("table5_5", i + 1, surface=s, lights=f"30x{n // 2}+60x{n // 2}",
                             n_images=n, size=48, ne_mean=ne["2Z/None"]))
-            for w in tv.WPS_WEIGHTS:
+            for w in T55.WPS_WEIGHTS:
                 rows.append(row("table5_5", i + 2, surface=s, lights=f"30x{n // 2}+60x{n // 2}",
                                 n_images=n, size=48, method="wps", weight=w,
                                 ne_mean=ne[f"2Z/{w}"]))
@@ -158,21 +168,21 @@ def test_table5_5_rows_and_improvement():
                             model="lambert", shadows=False, ne_mean=2.0))
             i += 10
     agg = T.aggregate("table5_5", pd.DataFrame(rows))
-    assert T.lookup(agg, "ne", "2Z/eZsourceZsurface", "16") == pytest.approx(6.5)
-    assert T.lookup(agg, "improvement", "2Z/eZsourceZsurface", "16") == pytest.approx(35.0)
-    assert T.lookup(agg, "di", "1Z/None", "8") == pytest.approx(2.0)
+    assert A.lookup(agg, "ne", "2Z/eZsourceZsurface", "16") == pytest.approx(6.5)
+    assert A.lookup(agg, "improvement", "2Z/eZsourceZsurface", "16") == pytest.approx(35.0)
+    assert A.lookup(agg, "di", "1Z/None", "8") == pytest.approx(2.0)
     vs = {v.claim: v.status for v in V.verdicts("table5_5", agg)}
     assert vs["eZsourceZsurface improves on 1Z by >= 30 % at every n_i"] == V.SUPPORTED
     assert vs["2Z beats 1Z for n_i > 4 with highlights and shadows (ordinary PS)"] == V.SUPPORTED
 
 
 def test_payload_parsers_are_tolerant():
-    x, y = T.series_xy(json.dumps({"edges": [0, 10, 20], "ne": [1.0, 2.0]}))
+    x, y = A.series_xy(json.dumps({"edges": [0, 10, 20], "ne": [1.0, 2.0]}))
     assert list(x) == [5, 15] and list(y) == [1, 2]
-    x, y = T.series_xy(json.dumps([[5, 1.0], [15, 2.0]]))
+    x, y = A.series_xy(json.dumps([[5, 1.0], [15, 2.0]]))
     assert list(y) == [1, 2]
-    assert T.series_xy("not json") is None
-    c = T.ie_components(json.dumps({"highlight": 0.1, "shadow": 0.2, "total": 0.3}))
+    assert A.series_xy("not json") is None
+    c = A.ie_components(json.dumps({"highlight": 0.1, "shadow": 0.2, "total": 0.3}))
     assert c["total"] == 0.3
 
 
@@ -227,7 +237,7 @@ def test_empty_store_report_says_so(tmp_path):
     text = (out / "index.md").read_text()
     assert "EMPTY" in text
     assert "INCONCLUSIVE" in (out / "table5_3.md").read_text()
-    for name in T.EXPERIMENTS:
+    for name in T.names():
         assert (out / f"{name}.md").is_file() and (out / f"{name}.html").is_file()
 
 
@@ -259,23 +269,23 @@ def test_table6_1_uses_eq_2_30_for_wps_rows():
     for data, base in (("/x/diligent/cat", 2.0), ("/x/sim_rig", 6.0)):
         for lay in ("30x4+60x4", "30x8+60x8"):
             rows.append(row("table6_1", i, data=data, lights=lay, ie_l2=base, t_solve=1.0))
-            for w in tv.WPS_WEIGHTS:
+            for w in T55.WPS_WEIGHTS:
                 rows.append(row("table6_1", i + 1, data=data, lights=lay, method="wps", weight=w,
                                 ie_l2=base * 1.2, ie_weighted=base * (0.5 if w == "e" else 0.6),
                                 t_solve=3.0))
                 i += 2
     agg = T.aggregate("table6_1", pd.DataFrame(rows))
-    assert T.lookup(agg, "30x4+60x4", "e", "cat") == pytest.approx(50.0)
-    assert T.lookup(agg, "30x4+60x4", "eZsource", "overall") == pytest.approx(60.0)
+    assert A.lookup(agg, "30x4+60x4", "e", "cat") == pytest.approx(50.0)
+    assert A.lookup(agg, "30x4+60x4", "eZsource", "overall") == pytest.approx(60.0)
     vs = {v.claim: v.status for v in V.verdicts("table6_1", agg)}
     assert vs["WPS reduces IE w.r.t. 2Z PS for every weight (30x8+60x8)"] == V.SUPPORTED
     assert vs["e weights give the lowest IE on real images (30x4+60x4)"] == V.SUPPORTED
     # without ie_weighted the WPS rows fall back to Eq. 2.29 (120 %): not decidable
     old = pd.DataFrame(rows).drop(columns="ie_weighted")
     agg2 = T.aggregate("table6_1", old)
-    assert T.lookup(agg2, "30x4+60x4", "e", "cat") == pytest.approx(120.0)
+    assert A.lookup(agg2, "30x4+60x4", "e", "cat") == pytest.approx(120.0)
     vs2 = {v.claim: v.status for v in V.verdicts("table6_1", agg2)}
     assert vs2["WPS reduces IE w.r.t. 2Z PS for every weight (30x8+60x8)"] == V.INCONCLUSIVE
     t62 = T.aggregate("table6_2", pd.DataFrame(rows))
-    assert T.lookup(t62, "", "e", "30x8+60x8") == pytest.approx(3.0)
+    assert A.lookup(t62, "", "e", "30x8+60x8") == pytest.approx(3.0)
     assert {v.status for v in V.verdicts("table6_2", t62)} == {V.SUPPORTED}
