@@ -28,10 +28,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     for lab, lim, th in (("Di", 5.0, "1.44 -> 1.38, 4 %"), ("Hi-Sh", 2.0, "9.34 -> 9.25, 1 %")):
         s = series(agg, "", lab)

@@ -26,10 +26,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     if agg is None or agg.empty:
         return [nodata("Z_source = 45 deg is optimal for diffuse images at every n_i")]
     opts = {}

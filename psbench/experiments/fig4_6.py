@@ -33,10 +33,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     if agg is None or agg.empty:
         return [nodata("Highlight IE falls and shadow IE rises with Z_source")]

@@ -33,10 +33,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     s30, s60 = series(agg, "", "30"), series(agg, "", "60")
     out = []
     if len(s30) > 2:

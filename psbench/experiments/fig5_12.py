@@ -24,10 +24,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     fams = ["None", "NL", "Th", "NL-Sh", "Th-Hi-Re-Sh", "RA"]
     s = {f: series(agg, "", f) for f in fams}

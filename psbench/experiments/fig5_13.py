@@ -26,10 +26,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     s = {f: series(agg, "", f) for f in ("None", "NL", "Th", "NL-Sh", "Th-Hi-Re-Sh", "RA")}
     ra, no = s["RA"], s["None"]

@@ -24,10 +24,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     s0 = series(agg, "", "0")
     for nz in ("0.05", "0.1"):

@@ -40,6 +40,7 @@ def aggregate(rows):
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     c4, c8 = series(agg, "", "4"), series(agg, "", "8")
     if c4.empty or c8.empty:

@@ -94,6 +94,7 @@ def aggregate(rows):
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     th = THESIS[""]
     opt = {} if agg is None or agg.empty else {

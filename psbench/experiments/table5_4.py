@@ -43,10 +43,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     avg = {r: v for r, v in part_values(agg, "average", "ne").items()}
     dif = {r: v for r, v in part_values(agg, "difference", "ne").items()}

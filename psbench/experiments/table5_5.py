@@ -81,10 +81,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     out = []
     one, two = series(agg, "ne", "1Z/None"), series(agg, "ne", "2Z/None")
     common = one.index.intersection(two.index)

@@ -37,10 +37,12 @@ def _records(df):
 
 
 def aggregate(rows):
+    """The long-format aggregate of the experiment's ok rows."""
     return long_frame(_records(rows))
 
 
 def verdicts(agg, rows=None):
+    """One verdict per conclusion the thesis draws from this experiment."""
     w, b = lookup(agg, "", "weighted", "mean"), lookup(agg, "", "binary", "mean")
     if not (ok(w) and ok(b)):
         return [nodata("Binary beats weighted fusion on NE (mean of the sombreros)")]
