@@ -23,25 +23,11 @@ from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "KINDS", "THESIS_TABLE_5_5", "THESIS_TABLE_5_6"]
+           "KINDS"]
 
 #: image kinds -> render options
 KINDS = {"Di": dict(model="lambert", shadows=False), "Hi-Sh": dict(model="ts", shadows=True)}
 
-#: thesis Table 5.5: mean NE (deg) of the three sombreros, rows (source, weight), columns n_i
-THESIS_TABLE_5_5 = {
-    ("1Z", "None"): (9.65, 9.42, 9.34, 9.27, 9.25),
-    ("2Z", "None"): (9.05, 8.41, 8.13, 7.91, 7.78),
-    ("2Z", "e"): (8.44, 7.84, 7.89, 8.05, 8.08),
-    ("2Z", "eZsource"): (7.92, 7.14, 7.11, 7.25, 7.26),
-    ("2Z", "eZsurface"): (7.00, 6.25, 6.17, 6.26, 6.22),
-    ("2Z", "eZsourceZsurface"): (6.60, 5.77, 5.64, 5.73, 5.68),
-}
-#: thesis Table 5.6: NE (deg) of eZsourceZsurface WPS with 16 images, weighted / binary
-THESIS_TABLE_5_6 = {
-    "Weighted": {"sombrero1": 4.08, "sombrero2": 6.12, "sombrero3": 6.74, "Mean": 5.65},
-    "Binary": {"sombrero1": 3.39, "sombrero2": 5.19, "sombrero3": 7.00, "Mean": 5.19},
-}
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 
 

@@ -122,25 +122,36 @@ def test_clean_errors_exit_2(tmp_path):
 def test_experiment_command_and_height_file(tmp_path):
     import numpy as np
 
-    conf = tmp_path / "myconf" / "experiment"
-    conf.mkdir(parents=True)
-    (conf / "tiny.yaml").write_text(
-        "# @package _global_\n"
+    # an experiment of another package: module + YAML, found through its entry point
+    site = tmp_path / "site"
+    (site / "tinypkg").mkdir(parents=True)
+    (site / "tinypkg" / "__init__.py").write_text("")
+    (site / "tinypkg" / "tiny.py").write_text(
+        "TITLE = 'tiny'\n\ndef aggregate(rows):\n    return []\n")
+    (site / "tinypkg" / "tiny.yaml").write_text(
         "experiment:\n  name: tiny\n  grids:\n"
         "    - {surface: [semisphere, bump.npy], mask: [None, Th], noise: [0.0, 0.1]}\n"
         "  fixed: {lights: 45x8}\n"
         "  scales:\n    full: {size: 512}\n    ci: {size: 24, seed: [0]}\n")
+    (site / "tinypkg-0.1.dist-info").mkdir()
+    (site / "tinypkg-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: tinypkg\nVersion: 0.1\n")
+    (site / "tinypkg-0.1.dist-info" / "entry_points.txt").write_text(
+        "[psbench.experiments]\ntiny = tinypkg.tiny\n")
     yy, xx = np.mgrid[:24, :24]
     np.save(tmp_path / "bump.npy", 6.0 * np.exp(-((xx - 12) ** 2 + (yy - 12) ** 2) / 40.0))
-    args = ["+experiment=tiny", "scale=ci", "jobs=1",
-            f"hydra.searchpath=[file://{tmp_path / 'myconf'}]"]
-    r = psbench(*args, cwd=tmp_path)
+    args = ["+experiment=tiny", "scale=ci", "jobs=1"]
+    env = dict(_env(), PYTHONPATH=os.pathsep.join(
+        p for p in (str(site), os.environ.get("PYTHONPATH")) if p))
+    r = subprocess.run(CMD + args, cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=120)
     assert r.returncode == 0, r.stderr
     df = read_store(tmp_path / "results", experiment="tiny")
     assert len(df) == 8 and set(df["status"]) == {"ok"}
     assert set(df["size"]) == {24} and (df["surface"].str.endswith("bump.npy")).sum() == 4
     assert "8 of 8" in r.stderr
-    r = psbench(*args, cwd=tmp_path)
+    r = subprocess.run(CMD + args, cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=120)
     assert r.returncode == 0 and "8 of 8 runs skipped (stored)" in r.stderr
 
 

@@ -259,5 +259,6 @@ def test_plus_prefix_accepted_for_existing_keys():
     from psbench.harness.app import _fix_argv
 
     assert _fix_argv(["+rerun=true", "++seed=1", "+experiment=t", "mask=Th",
-                      "+thresholds.k_low=0.1", "+foo=1"]) == \
-        ["++rerun=true", "++seed=1", "+experiment=t", "mask=Th", "++thresholds.k_low=0.1", "+foo=1"]
+                      "+thresholds.k_low=0.1", "+foo=1", "experiment=u"]) == \
+        ["++rerun=true", "++seed=1", "++experiment=t", "mask=Th", "++thresholds.k_low=0.1", "+foo=1",
+         "++experiment=u"]

@@ -52,10 +52,14 @@ def _config_path() -> str:
 
 def _fix_argv(argv):
     """``+rerun=true`` -> ``++rerun=true`` for keys the config defines (Hydra refuses
-    ``+`` for existing keys); everything else is left to Hydra."""
+    ``+`` for existing keys); ``[+]experiment=NAME`` -> ``++experiment=NAME`` (experiments
+    come from the registry, not from a Hydra config group); everything else is left to
+    Hydra."""
     out = []
     for a in argv:
-        if a.startswith("+") and not a.startswith("++") and "=" in a:
+        if "=" in a and a.lstrip("+").split("=", 1)[0] == "experiment":
+            a = "++" + a.lstrip("+")
+        elif a.startswith("+") and not a.startswith("++") and "=" in a:
             key = a[1:].split("=", 1)[0].split(".", 1)[0]
             if key in _KEYS:
                 a = "+" + a
@@ -160,11 +164,22 @@ def _task(cfg):
 
 
 def _experiment(cfg, root):
-    from .grid import expand, experiment_spec
+    """Run a registered experiment's grid (``experiment=NAME``) in chunks."""
+    from .. import registry
+    from .grid import check_scale, expand, experiment_spec, load
     from .shards import execute_runs
 
-    exp = experiment_spec(cfg.experiment)
-    runs = expand(exp, str(cfg.scale), _base_params(cfg), base_dir=_cwd())
+    scale = str(cfg.scale)
+    if isinstance(cfg.experiment, str):
+        spec = registry.get("experiments", cfg.experiment, what="experiment")
+        exp = load(spec.name, results_dir=root)
+        check_scale(exp, scale)
+        prepare = getattr(spec.module, "prepare", None)
+        if prepare is not None:          # e.g. generated input folders, made once if missing
+            prepare(root, scale)
+    else:                                # an inline mapping (name, grids, fixed, scales)
+        exp = experiment_spec(cfg.experiment)
+    runs = expand(exp, scale, _base_params(cfg), base_dir=_cwd())
     name = str(exp["name"])
     print(f"experiment {name} (scale={cfg.scale}): {len(runs)} runs -> {root}/runs/{name}/",
           file=sys.stderr, flush=True)

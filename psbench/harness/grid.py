@@ -1,6 +1,7 @@
-"""Experiment grids: expand ``experiment:`` configs into run parameter dicts.
+"""Experiment grids: load an experiment's YAML and expand it into run parameter dicts.
 
-Format (``conf/experiment/<name>.yaml``, ``# @package _global_``)::
+An experiment is found through the registry (``registry.get("experiments", name)``, see
+:mod:`psbench.experiments`); its grid is the YAML file beside its module::
 
     experiment:
       name: table5_3
@@ -12,8 +13,10 @@ Format (``conf/experiment/<name>.yaml``, ``# @package _global_``)::
         full: {size: 512, seed: [0]}
         ci:   {size: 48, seed: [0]}
 
-For each grid entry the parameters are: base (the command line's run parameters)
-< ``fixed`` < the grid entry < ``scales[scale]``; then every list value expands
+Values may use OmegaConf interpolations: resolvers such as ``${oc.env:VAR,default}`` and
+``${results_dir}`` (the results store the runs go to). For each grid entry the
+parameters are: base (the command line's run parameters) < ``fixed`` < the grid entry <
+``scales[scale]``; then every list value expands
 (cartesian product). Values that must stay lists (``extras``) are lists of lists in
 the grid, or plain lists in ``fixed``/scale when given as ``[[...]]``. ``zenith`` and
 ``count`` build ``lights = "<zenith>x<count>"`` unless ``lights`` is set by the
@@ -23,10 +26,11 @@ from __future__ import annotations
 
 import itertools
 
+from .. import registry
 from .._checks import PsbenchError
 from .run import PARAMS, normalize, run_id
 
-__all__ = ["expand", "experiment_spec", "available"]
+__all__ = ["expand", "experiment_spec", "load", "check_scale", "available"]
 
 _LIST_PARAMS = ("extras",)   # list-valued parameters: a flat list is ONE value
 _DICT_PARAMS = ("thresholds", "args")
@@ -38,8 +42,7 @@ def experiment_spec(exp) -> dict:
 
     exp = _plain(exp)
     if isinstance(exp, str):
-        raise PsbenchError(f"experiment={exp!r}: select an experiment config with "
-                           f"+experiment={exp} (available: {', '.join(available()) or 'none'})")
+        return load(exp)
     if not isinstance(exp, dict):
         raise PsbenchError(f"experiment must be a mapping with name/grids, got {exp!r}")
     unknown = set(exp) - {"name", "description", "grids", "fixed", "scales"}
@@ -60,17 +63,55 @@ def experiment_spec(exp) -> dict:
 
 
 def available() -> list[str]:
-    """Names of the experiment configs shipped in ``psbench.conf`` (``conf/experiment``)."""
+    """Names of the registered experiments."""
+    return registry.names("experiments")
+
+
+def load(name, *, results_dir=None) -> dict:
+    """The validated grid of the registered experiment ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A registered experiment (unknown names raise, listing the valid ones).
+    results_dir : str or path-like, optional
+        Value of ``${results_dir}`` in the YAML (default ``results``, relative to the
+        current directory like the store's default).
+
+    Returns
+    -------
+    dict
+        The ``experiment`` mapping (see the module docstring), interpolations resolved.
+    """
+    from omegaconf import OmegaConf
+
+    spec = registry.get("experiments", name, what="experiment")
+    if spec.grid is None or not spec.grid.is_file():
+        raise PsbenchError(f"experiment {spec.name!r} has no grid: expected a YAML file beside "
+                           f"its module {getattr(spec.module, '__file__', spec.module)!r}")
+    doc = OmegaConf.load(spec.grid)
+    if "experiment" not in doc:
+        raise PsbenchError(f"{spec.grid}: expected a top-level 'experiment:' mapping")
+    ctx = OmegaConf.create({"results_dir": str(results_dir if results_dir is not None
+                                               else "results")})
+    ctx.experiment = doc.experiment
     try:
-        from importlib import resources
+        exp = OmegaConf.to_container(ctx.experiment, resolve=True) or {}
+    except Exception as exc:  # noqa: BLE001 - OmegaConf's errors name the key
+        raise PsbenchError(f"{spec.grid}: cannot resolve the grid: {exc}") from None
+    exp.setdefault("name", spec.name)
+    if exp["name"] != spec.name:
+        raise PsbenchError(f"{spec.grid}: name {exp['name']!r} differs from the registered "
+                           f"experiment name {spec.name!r}")
+    return experiment_spec(exp)
 
-        d = resources.files("psbench.conf") / "experiment"
-        return sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml"))
-    except Exception:  # noqa: BLE001 - fall back to the source tree
-        from pathlib import Path
 
-        d = Path(__file__).resolve().parents[2] / "conf" / "experiment"
-        return sorted(p.stem for p in d.glob("*.yaml"))
+def check_scale(exp, scale) -> None:
+    """Refuse a scale the experiment does not define (unless it defines none)."""
+    scales = exp.get("scales") or {}
+    if scales and scale not in scales:
+        raise PsbenchError(f"experiment {exp['name']}: scale={scale!r} is not defined; valid "
+                           f"choices: {', '.join(scales)}")
 
 
 def _axis(key, value):
@@ -91,8 +132,9 @@ def expand(exp, scale="full", base=None, *, base_dir=None) -> list[dict]:
 
     Parameters
     ----------
-    exp : mapping
-        The ``experiment`` config (see module docstring).
+    exp : mapping or str
+        The ``experiment`` config (see module docstring), or the name of a registered
+        experiment (its grid is loaded with :func:`load`).
     scale : str
         Key of ``exp["scales"]`` (``full``, ``ci``, ...). A scale the experiment does
         not define is an error listing the defined ones (unless it defines none).
@@ -105,11 +147,8 @@ def expand(exp, scale="full", base=None, *, base_dir=None) -> list[dict]:
         Normalized parameters (:func:`psbench.harness.run.normalize`), unique by run_id.
     """
     exp = experiment_spec(exp)
-    scales = exp["scales"]
-    if scales and scale not in scales:
-        raise PsbenchError(f"experiment {exp['name']}: scale={scale!r} is not defined; valid "
-                           f"choices: {', '.join(scales)}")
-    over = scales.get(scale) or {}
+    check_scale(exp, scale)
+    over = exp["scales"].get(scale) or {}
     base = dict(base or {})
     out, seen = [], set()
     valid = set(PARAMS) | {"zenith", "count"}

@@ -1,9 +1,13 @@
 """Thesis reports from the results store: tables vs thesis, verdicts, figures, CI gate.
 
-- :mod:`.thesis_values` every thesis table's numbers, keyed table/part/row/column;
-- :mod:`.tables` aggregation of store rows into those keys (one long frame per experiment);
-- :mod:`.verdicts` one SUPPORTED / NOT SUPPORTED / INCONCLUSIVE line per conclusion;
-- :mod:`.figures`, :mod:`.panels`, :mod:`.html` figures, image panels, Markdown/HTML pages;
+The experiments themselves live in :mod:`psbench.experiments` (one module + grid YAML
+each, found through :mod:`psbench.registry`); this package is the machinery that reports
+them and the library their modules use:
+
+- :mod:`.aggregates` helpers to build and read the long-format aggregates;
+- :mod:`.verdicts` the Verdict type and the shared rules (margins, no data);
+- :mod:`.figures` plotting helpers; :mod:`.panels` image panels; :mod:`.html` pages;
+- :mod:`.tables` store rows -> each experiment's aggregate -> comparison with the thesis;
 - :mod:`.cli` ``psbench-report``; :mod:`.gate` ``python -m psbench.report.gate check|update``.
 """
 from __future__ import annotations

@@ -4,9 +4,10 @@ Usage::
 
     psbench-report [--results results] [--out reports] [--scale full|ci] [--panels]
 
-Reads every row of the store (never solves), aggregates each thesis experiment
-(:mod:`psbench.report.tables`), compares with the thesis's values, decides one verdict per
-qualitative conclusion (:mod:`psbench.report.verdicts`), draws the figures and writes one
+Reads every row of the store (never solves), aggregates each registered experiment
+(:mod:`psbench.experiments`, found through :mod:`psbench.registry`; the generic steps are
+in :mod:`psbench.report.tables`), compares with the thesis's values, decides one verdict
+per qualitative conclusion (:mod:`psbench.report.verdicts`), draws the figures and writes one
 Markdown and one HTML page per experiment plus ``index.md`` / ``index.html`` with the
 measured wall time of the runs and provenance. ``--panels`` additionally renders and
 solves ONE small scene to draw the image panels of Figs. 5.15-5.17 (clearly labelled as
@@ -28,10 +29,10 @@ import pandas as pd
 from . import figures as F
 from . import tables as T
 from . import verdicts as V
+from .aggregates import data_name
 from .html import save_figure, write_atomic, write_page
 
 MAX_PIVOT_COLS = 16
-HIDDEN_PARTS = {"table5_2": {"qf", "re_ne"}}
 
 
 def _git_sha():
@@ -129,7 +130,7 @@ def _averaged_over(rows):
     out = []
     for k in keys:
         if k in rows and rows[k].notna().any():
-            vals = _num_sort([_pstr(v) if k != "data" else T.data_name(v)
+            vals = _num_sort([_pstr(v) if k != "data" else data_name(v)
                               for v in rows[k].dropna().unique()])
             if len(vals) > 12:
                 vals = vals[:12] + [f"... ({len(vals)} values)"]
@@ -137,22 +138,24 @@ def _averaged_over(rows):
     return out
 
 
-def build_experiment(name, df, out, scale, messages):
+def build_experiment(name, df, out, scale, messages, results=None):
     """Write one experiment's page; returns (summary dict, verdicts)."""
-    rows_all = T.select(df, name, scale, status=None)
+    mod = T.experiment_module(name)
+    rows_all = T.select(df, name, scale, status=None, results=results)
     ok = rows_all[rows_all["status"] == "ok"] if not rows_all.empty else rows_all
     failed = rows_all[rows_all["status"] != "ok"] if not rows_all.empty else rows_all
     agg = T.aggregate(name, ok)
     cmp = T.compare(name, agg)
     verdicts = V.verdicts(name, agg, ok)
-    spec = T.experiment_spec(name)
-    size = T.scale_size(name, scale)
-    blocks = [("h1", T.EXPERIMENTS[name]),
+    spec = T.grid(name, results)
+    size = T.scale_size(name, scale, results)
+    notes = getattr(mod, "NOTES", "")
+    blocks = [("h1", T.title(name)),
               ("p", f"Experiment `{name}`, scale `{scale}`"
                     + (f" (image size {size} x {size}; the thesis used 512 x 512)" if size else "")
                     + f". {spec.get('description', '')}"),
-              ("p", "What psbench averages: " + T.AVERAGES.get(name, "")),
-              ("p", ("Deviations / caveats: " + T.NOTES[name]) if name in T.NOTES else
+              ("p", "What psbench averages: " + getattr(mod, "AVERAGES", "")),
+              ("p", ("Deviations / caveats: " + notes) if notes else
                     "Deviations / caveats: none beyond the image size stated above."),
               ("p", f"Runs: {len(ok)} ok, {len(failed)} failed (of {len(rows_all)} stored at "
                     f"this scale).")]
@@ -177,7 +180,7 @@ def build_experiment(name, df, out, scale, messages):
     blocks.append(("h2", "psbench vs thesis"))
     blocks.append(("p", "Cells: psbench / thesis (psbench - thesis); a lone number is psbench "
                         "(the thesis printed none); '— / x' means psbench has no value."))
-    hidden = HIDDEN_PARTS.get(name, set())
+    hidden = set(getattr(mod, "HIDDEN_PARTS", ()))
     for part in list(dict.fromkeys(cmp["part"])):
         if part in hidden:
             blocks.append(("p", f"Part '{part}' ({int((cmp['part'] == part).sum())} cells) is "
@@ -189,10 +192,10 @@ def build_experiment(name, df, out, scale, messages):
         if piv.shape[1] - 1 > MAX_PIVOT_COLS:
             piv = cmp[cmp["part"] == part].drop(columns="part").head(80)
         blocks.append(("table", piv))
-    yaml_path = T.conf_dir() / "experiment" / f"{name}.yaml"
-    if yaml_path.is_file():
-        blocks += [("h2", "Experiment definition"), ("pre", yaml_path.read_text())]
-    write_page(out, name, blocks, T.EXPERIMENTS[name])
+    text = T.grid_text(name)
+    if text is not None:
+        blocks += [("h2", "Experiment definition"), ("pre", text)]
+    write_page(out, name, blocks, T.title(name))
     write_atomic(Path(out) / "data" / f"{name}.csv", cmp.to_csv(index=False))
     shas = sorted(set(rows_all["git_sha"].dropna())) if "git_sha" in rows_all else []
     summary = dict(experiment=name, **_wall(rows_all), size=size, shas=shas,
@@ -208,7 +211,8 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
           experiments=None) -> Path:
     """Rebuild the report folder; returns the path of ``index.html``.
 
-    ``experiments`` restricts the pages to a subset of :data:`tables.EXPERIMENTS`.
+    ``experiments`` restricts the pages to a subset of the registered experiments
+    (:func:`psbench.report.tables.names`).
     """
     import psbench
 
@@ -218,9 +222,9 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     for m in messages:
         log(f"warning: {m}")
     summaries, all_verdicts = [], []
-    names = [n for n in T.EXPERIMENTS if experiments is None or n in experiments]
+    names = [n for n in T.names() if experiments is None or n in experiments]
     for name in names:
-        s, vs = build_experiment(name, df, out, scale, messages)
+        s, vs = build_experiment(name, df, out, scale, messages, results=results)
         summaries.append(s)
         all_verdicts.extend(vs)
     panel_files = []
@@ -271,9 +275,10 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         for s in summaries])
     blocks.append(("table", tab))
     blocks += [("h2", "Deviations from the thesis (chosen to fit the time budget or the data)"),
-               ("list", [f"{n}: {T.NOTES[n]}" for n in names if n in T.NOTES])]
+               ("list", [f"{n}: {getattr(T.experiment_module(n), 'NOTES', '')}" for n in names
+                         if getattr(T.experiment_module(n), "NOTES", "")])]
     blocks += [("h2", "Pages"),
-               ("links", [(f"{n}.html", f"{T.EXPERIMENTS[n]} ({n})") for n in names])]
+               ("links", [(f"{n}.html", f"{T.title(n)} ({n})") for n in names])]
     other = "ci" if scale == "full" else None
     if other and (out / other / "index.html").is_file():
         blocks += [("h2", "Other scale"),

@@ -10,7 +10,9 @@ The gate runs nothing itself. It reads the store, keeps each gated experiment's
 (:func:`psbench.report.tables.aggregate`: e.g. mean NE / QF / time per mask for
 table5_3, mean NE per configuration for table5_4 and table5_5) and compares every cell
 with the committed baseline ``results/baselines/<experiment>.csv`` under the tolerances
-of ``results/baselines/tolerances.yaml``:
+of ``results/baselines/tolerances.yaml``. The gated experiments are the registered ones
+whose module sets ``GATED = True`` (:func:`gated`); each cell's tolerance class comes
+from the module's ``cell_kind(part, column)`` (default ``ne``):
 
 - angles (NE, deg), condition values and QF: absolute tolerance;
 - intensity errors and percentages: relative tolerance;
@@ -33,9 +35,6 @@ import pandas as pd
 from . import tables as T
 from .html import write_atomic
 
-#: experiments the CI gate checks (each run with ``psbench +experiment=<name> scale=ci``)
-GATED = ("table2_1", "table5_3", "table5_4", "table5_5", "table5_6", "fig5_12")
-
 DEFAULT_TOLERANCES = {
     "ne": {"abs": 0.3},          # degrees
     "cond": {"abs": 1e-3},
@@ -48,23 +47,16 @@ DEFAULT_TOLERANCES = {
 }
 
 
+def gated() -> tuple[str, ...]:
+    """Experiments the CI gate checks (``GATED = True`` in their module), in report order;
+    each is run with ``psbench +experiment=<name> scale=ci``."""
+    return tuple(n for n in T.names() if getattr(T.experiment_module(n), "GATED", False))
+
+
 def metric_kind(experiment: str, part: str, column: str) -> str:
-    """Which tolerance class a cell belongs to."""
-    if experiment == "table2_1":
-        return "cond"
-    if experiment == "table5_3":
-        return {"ne": "ne", "time": "time"}.get(column, "qf")
-    if experiment == "table5_5" and part == "improvement":
-        return "percent"
-    if experiment == "table5_2":
-        return {"qf": "qf", "optimum": "threshold", "re_optimum": "threshold"}.get(part, "ne")
-    if experiment == "table6_1":
-        return "percent"
-    if experiment == "table6_2":
-        return "ratio"
-    if experiment in ("fig4_6", "fig4_10"):
-        return "ie"
-    return "ne"
+    """Which tolerance class a cell belongs to (the module's ``cell_kind``)."""
+    fn = getattr(T.experiment_module(experiment), "cell_kind", None)
+    return str(fn(part, column)) if fn is not None else "ne"
 
 
 def default_baselines() -> Path:
@@ -93,12 +85,13 @@ def _tol_for(tol, experiment, kind):
     return t
 
 
-def current_tables(results, experiments=GATED) -> dict:
+def current_tables(results, experiments=None) -> dict:
     """``{experiment: long aggregate}`` of the CI-scale ok rows in the store."""
+    experiments = gated() if experiments is None else experiments
     df, msgs = T.load_store(results)
     for m in msgs:
         print(f"warning: {m}", file=sys.stderr)
-    return {e: T.aggregate(e, T.select(df, e, "ci")) for e in experiments}
+    return {e: T.aggregate(e, T.select(df, e, "ci", results=results)) for e in experiments}
 
 
 def compare(experiment, base: pd.DataFrame, cur: pd.DataFrame, tol) -> pd.DataFrame:
@@ -170,8 +163,9 @@ def _fmt_table(df: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def check(results=None, baselines=None, experiments=GATED, verbose=False, out=print) -> int:
+def check(results=None, baselines=None, experiments=None, verbose=False, out=print) -> int:
     """Compare current CI aggregates with the baselines; returns the exit code."""
+    experiments = gated() if experiments is None else experiments
     baselines = Path(baselines) if baselines is not None else default_baselines()
     tol = load_tolerances(baselines)
     cur = current_tables(results, experiments)
@@ -213,8 +207,9 @@ def check(results=None, baselines=None, experiments=GATED, verbose=False, out=pr
     return 0
 
 
-def update(results=None, baselines=None, experiments=GATED, out=print) -> int:
+def update(results=None, baselines=None, experiments=None, out=print) -> int:
     """Rewrite ``<baselines>/<experiment>.csv`` from the current CI rows."""
+    experiments = gated() if experiments is None else experiments
     baselines = Path(baselines) if baselines is not None else default_baselines()
     cur = current_tables(results, experiments)
     empty = [e for e in experiments if cur[e].empty]
@@ -242,16 +237,16 @@ def main(argv=None) -> int:
                                                     "results)")
     ap.add_argument("--baselines", default=None, help="baseline folder (default "
                                                       "results/baselines)")
-    ap.add_argument("--only", default=None, help="comma-separated subset of the gated "
-                                                 f"experiments ({', '.join(GATED)})")
+    ap.add_argument("--only", default=None, help="comma-separated experiments (default: the "
+                                                 "gated ones, GATED = True in their module)")
     ap.add_argument("-v", "--verbose", action="store_true", help="print every cell")
     a = ap.parse_args(argv)
-    exps = tuple(GATED)
+    exps = gated()
     if a.only:
         exps = tuple(x.strip() for x in a.only.split(",") if x.strip())
-        unknown = [x for x in exps if x not in T.EXPERIMENTS]
+        unknown = [x for x in exps if x not in T.names()]
         if unknown:
-            ap.error(f"unknown experiment(s) {unknown}; valid: {', '.join(T.EXPERIMENTS)}")
+            ap.error(f"unknown experiment(s) {unknown}; valid: {', '.join(T.names())}")
     from psbench.harness.store import default_root
 
     results = default_root(a.results)
