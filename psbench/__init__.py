@@ -7,12 +7,14 @@ Public API (see README): ``make_surface``, ``surface_from_height``, ``layout``,
 The core functions are imported eagerly: ``render``, ``solve`` and ``integrate`` share
 their names with the modules that define them, and a lazy export would be shadowed by
 the submodule as soon as it is imported. The heavier real-image modules (``io``,
-``calibrate``, ``capture``, ``analysis``) load on first use.
+``calibrate``, ``capture``, ``analysis``) load on first use. ``SURFACES`` lists the
+registered surfaces (plug-ins included) each time it is read.
 """
 from __future__ import annotations
 
 import importlib
 
+from . import surfaces
 from ._checks import PsbenchError
 from .integrate import integrate
 from .lights import Layout, cond, layout
@@ -21,7 +23,7 @@ from .metrics import (intensity_error, normal_error, normal_error_map, normal_er
 from .render import Scene, render
 from .shadowmap import shadow_map
 from .solve import Result, solve
-from .surfaces import SURFACES, Surface, make_surface, surface_from_file, surface_from_height
+from .surfaces import Surface, make_surface, surface_from_file, surface_from_height
 
 __version__ = "0.1.0"
 
@@ -35,6 +37,8 @@ __all__ = ["PsbenchError", "__version__", "integrate", "Layout", "cond", "layout
 
 
 def __getattr__(name):
+    if name == "SURFACES":  # read from the surface registry on every access
+        return surfaces.SURFACES
     if name in _LAZY:
         mod = importlib.import_module(f"psbench.{name}")
         globals()[name] = mod

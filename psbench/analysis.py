@@ -36,7 +36,7 @@ def _surface(surface, size):
     from .surfaces import make_surface
     if isinstance(surface, str):
         return make_surface(surface, size=size)
-    if all(hasattr(surface, a) for a in ("height", "mask", "normals")):
+    if all(hasattr(surface, a) for a in ("height", "object_mask", "normals")):
         return surface
     raise PsbenchError(f"surface must be a surface name or a Surface, got {type(surface).__name__}")
 
@@ -60,7 +60,7 @@ def _render(surf, lights, kind, noise, seed, **kw):
 
 def _ne(normals, surf):
     from .metrics import normal_error
-    return float(normal_error(normals, surf.normals, surf.mask))
+    return float(normal_error(normals, surf.normals, object_mask=surf.object_mask))
 
 
 def _ps(images, lights, mask="None", **kw):
@@ -122,8 +122,9 @@ def ne_vs_surface_zenith(surface="sombrero2", lights=("30x8", "45x8", "60x8"), *
     for spec in _seq(lights):
         lay = layout(spec)
         sc = _render(surf, lay, kind, noise, seed)
-        res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
-        df = ne_by_zenith(res.normals, surf.normals, surf.mask, bins=_edges(bins))
+        res = _ps(sc.images, lay, mask=mask, object_mask=surf.object_mask)
+        df = ne_by_zenith(res.normals, surf.normals, object_mask=surf.object_mask,
+                          bins=_edges(bins))
         df.insert(0, "source_zenith", float(np.mean(lay.zenith)))
         df.insert(0, "lights", lay.name)
         df.insert(0, "surface", _sname(surf, surface))
@@ -178,8 +179,8 @@ def ie_decomposition(surface="sombrero2", zeniths=(20, 30, 40, 45, 50, 60, 70, 8
 
     by = choice(by, ("source", "surface"), "by")
     surf = _surface(surface, size)
-    mask = np.asarray(surf.mask, dtype=bool)
-    zs = _surface_zenith(surf)[mask]
+    obj = np.asarray(surf.object_mask, dtype=bool)
+    zs = _surface_zenith(surf)[obj]
     edges = _edges(bins)
     rows = []
     for z in _seq(zeniths):
@@ -190,9 +191,9 @@ def ie_decomposition(surface="sombrero2", zeniths=(20, 30, 40, 45, 50, 60, 70, 8
         ss = np.asarray(sc.self_shadow)
         cs = np.asarray(sc.cast_shadow) & ~ss
         parts = {
-            "highlight": np.abs(spec)[:, mask],
-            "self_shadow": np.where(ss, np.abs(lin), 0.0)[:, mask],
-            "cast_shadow": np.where(cs, np.abs(lin), 0.0)[:, mask],
+            "highlight": np.abs(spec)[:, obj],
+            "self_shadow": np.where(ss, np.abs(lin), 0.0)[:, obj],
+            "cast_shadow": np.where(cs, np.abs(lin), 0.0)[:, obj],
         }
         parts["total"] = parts["highlight"] + parts["self_shadow"] + parts["cast_shadow"]
         dr = float(np.mean(sc.dynamic_range))
@@ -257,7 +258,7 @@ def ne_vs_source_zenith(surface="sombrero2", zeniths=tuple(range(20, 85, 5)), *,
             for z in _seq(zeniths):
                 lay = layout(_ring(z, n))
                 sc = _render(surf, lay, kind, noise, seed)
-                res = _ps(sc.images, lay, mask=mask, object_mask=surf.mask)
+                res = _ps(sc.images, lay, mask=mask, object_mask=surf.object_mask)
                 rows.append(dict(surface=_sname(surf, surface), kind=kind, zenith=float(z),
                                  count=int(n), lights=lay.name, ne=_ne(res.normals, surf)))
     return pd.DataFrame(rows)
@@ -344,14 +345,14 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
                 raise PsbenchError(f"counts must be even and >= 6 (two rings of >= 3), got {n}")
             lay1 = layout(_ring(z_single, n))
             sc1 = _render(surf, lay1, kind, noise, seed)
-            r1 = _ps(sc1.images, lay1, object_mask=surf.mask)
+            r1 = _ps(sc1.images, lay1, object_mask=surf.object_mask)
             rows.append(dict(surface=_sname(surf, name), count=n, source="1Z", lights=lay1.name,
                              weight="None", binary=False, ne=_ne(r1.normals, surf)))
             lay2 = layout(f"{_ring(z1, n // 2)}+{_ring(z2, n // 2)}")
             sc2 = _render(surf, lay2, kind, noise, seed)
             for w in wlist:
                 for b in (_seq(binary) if w != "None" else [False]):
-                    r = wps(sc2.images, lay2, weight=w, binary=bool(b), object_mask=surf.mask,
+                    r = wps(sc2.images, lay2, weight=w, binary=bool(b), object_mask=surf.object_mask,
                             truth_normals=surf.normals if w == "oracle" else None)
                     rows.append(dict(surface=_sname(surf, name), count=n, source="2Z",
                                      lights=lay2.name, weight=w, binary=bool(b),

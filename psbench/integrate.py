@@ -16,10 +16,10 @@ Methods
 All Poisson variants solve the least-squares problem on the pixel grid: every
 pair of 4-neighbours is an edge whose target height difference is the mean of
 the two pixels' gradients (exact for planes); an edge is used only when both
-pixels are inside ``mask``.
+pixels are inside ``object_mask``.
 
 ``"poisson"`` (default)
-    The exact masked least-squares solution. Without a mask (or a full one) it
+    The exact masked least-squares solution. Without an object mask (or a full one) it
     is one DCT solve (Neumann boundary at the frame: ``scipy.fft.dctn`` /
     ``idctn``). Under a mask the Laplacian of the in-mask edges is no longer
     DCT-diagonal; it is solved by conjugate gradients preconditioned with the
@@ -43,21 +43,21 @@ pixels are inside ``mask``.
     Frankot–Chellappa: projection of the gradient field onto integrable Fourier
     modes (continuous frequencies). Gradients are mirrored to a (2H, 2W)
     periodic field (even extension of the height) to avoid wrap-around
-    artefacts at the frame. Outside ``mask`` the gradients are 0, so it has
+    artefacts at the frame. Outside ``object_mask`` the gradients are 0, so it has
     the membrane bias of ``"poisson-dct"`` under a mask.
 
-Separate mask components share no edge, so their relative offsets are not
+Separate components of the object mask share no edge, so their relative offsets are not
 fixed by the normals: the exact methods shift every 4-connected component so
 that its own minimum is 0 (objects resting on a common base plane) before the
 datum is applied.
 
-Only the mask's bounding box (plus a one-pixel frame) is processed.
+Only the object mask's bounding box (plus a one-pixel frame) is processed.
 
 Height datum
 ------------
-``datum="min"`` (default): the minimum over the mask is 0.
-``datum="mean"``: the mean over the mask is 0.
-Pixels outside the mask are set to 0 (the base plane) in both cases.
+``datum="min"`` (default): the minimum over the object mask is 0.
+``datum="mean"``: the mean over the object mask is 0.
+Pixels outside the object mask are set to 0 (the base plane) in both cases.
 """
 from __future__ import annotations
 
@@ -67,6 +67,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from ._checks import PsbenchError, as_mask, choice
+from ._deprecate import renamed_args
 
 __all__ = ["integrate", "gradients", "METHODS", "NZ_MIN"]
 
@@ -90,15 +91,16 @@ def _check_normals(normals):
     return n
 
 
-def gradients(normals, mask=None, *, nz_min=NZ_MIN):
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def gradients(normals, *, object_mask=None, nz_min=NZ_MIN):
     """Height gradients from normals in image axes.
 
     Parameters
     ----------
     normals : (H, W, 3) array_like
         Normals (need not be unit; only ratios are used).
-    mask : (H, W) bool, optional
-        Object mask; gradients outside it are 0.
+    object_mask : (H, W) bool, optional
+        Object region; gradients outside it are 0.
     nz_min : float
         Lower clamp on ``nz`` (relative to ``|n|``).
 
@@ -117,9 +119,9 @@ def gradients(normals, mask=None, *, nz_min=NZ_MIN):
     inv = np.reciprocal(nzc, dtype=np.float64)
     gcol = -nx * inv
     grow = ny * inv
-    if mask is not None:
-        gcol *= mask
-        grow *= mask
+    if object_mask is not None:
+        gcol *= object_mask
+        grow *= object_mask
     return gcol, grow
 
 
@@ -374,7 +376,8 @@ def _poisson_sparse(gcol, grow, mask):
     return z
 
 
-def integrate(normals, mask=None, *, method="poisson", datum="min", nz_min=NZ_MIN,
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_min=NZ_MIN,
               tol=1e-4, maxiter=100):
     """Integrate a normal map into a height map.
 
@@ -383,8 +386,8 @@ def integrate(normals, mask=None, *, method="poisson", datum="min", nz_min=NZ_MI
     normals : (H, W, 3) array_like
         Surface normals (unit or albedo-scaled; only ratios are used), frame
         x right, y up, camera at +z. Must be finite.
-    mask : (H, W) bool, optional
-        Object mask. Gradients outside it and edges crossing its boundary are
+    object_mask : (H, W) bool, optional
+        Object region. Gradients outside it and edges crossing its boundary are
         ignored. None: the whole frame.
     method : {"poisson", "poisson-dct", "fc", "poisson-sparse"}
         See the module docstring. "poisson": exact masked least squares (one
@@ -415,7 +418,7 @@ def integrate(normals, mask=None, *, method="poisson", datum="min", nz_min=NZ_MI
     if int(maxiter) < 1:
         raise PsbenchError(f"maxiter must be >= 1, got {maxiter}")
     H, W = n.shape[:2]
-    m = None if mask is None else as_mask(mask, (H, W), "mask")
+    m = None if object_mask is None else as_mask(object_mask, (H, W), "object_mask")
     if m is not None and not m.any():
         return np.zeros((H, W), dtype=np.float32)
     if m is not None and m.all():
@@ -439,7 +442,7 @@ def integrate(normals, mask=None, *, method="poisson", datum="min", nz_min=NZ_MI
 
 
 def _integrate_box(n, m, method, nz_min, tol, maxiter):
-    gcol, grow = gradients(n, m, nz_min=nz_min)
+    gcol, grow = gradients(n, object_mask=m, nz_min=nz_min)
     if method == "poisson-dct" or (method == "poisson" and m is None):
         z = _poisson_dct(gcol, grow, m)
     elif method == "poisson":

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._checks import PsbenchError
+from ._deprecate import renamed_args
 
 __all__ = ["Layout", "layout", "cond", "ring_spec"]
 
@@ -151,7 +152,8 @@ def _check_S(directions, power, name):
             "lights must not be coplanar with the origin or duplicated, e.g. a ring at zenith 0")
 
 
-def layout(spec, power=None, *, ring=None, positions=None) -> Layout:
+@renamed_args(positional=("power",))
+def layout(spec, *, power=None, ring=None, positions=None) -> Layout:
     """Build a :class:`Layout`.
 
     Parameters

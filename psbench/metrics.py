@@ -4,7 +4,7 @@ Definitions chosen where the thesis leaves room (all documented per function):
 
 * **NE** – angle between estimated and true normal, ``atan2(|a x b|, a . b)`` in
   float64 (accurate at small angles, independent of vector lengths), averaged
-  over the mask.
+  over the object mask.
 * **IE** – per pixel, the residual ``R_i = I_i - rho s_i . n`` of every image
   i = 1..k with the *linear* Lambert prediction (no clamp at 0), which is the
   least-squares residual of Eq. 2.31 when ``rho n`` is the unmasked LS solution.
@@ -12,17 +12,21 @@ Definitions chosen where the thesis leaves room (all documented per function):
   image count: ``l1 = mean_i |R_i|``, ``l2 = sqrt(mean_i R_i^2)`` (RMS),
   ``linf = max_i |R_i|``; these are in intensity units and comparable across k
   (``average=False`` gives the plain vector norms of Eq. 2.31's text). IE is the
-  mean of the per-pixel values over the mask.
+  mean of the per-pixel values over the object mask.
 * **Weighted IE** (Eq. 2.30) – ``IE = sum_j w_j IE_j`` per pixel, with ring
-  weights ``w_j`` (rings, H, W) and per-ring IE maps, then averaged over the mask.
-* **QF** – ``TP / (TP + FP + FN)`` counted over observations (k x mask pixels);
-  see :func:`quality_factor` for the highlight / shadow / total split.
+  weights ``w_j`` (rings, H, W) and per-ring IE maps, then averaged over the object
+  mask.
+* **QF** – ``TP / (TP + FP + FN)`` counted over observations (k x object pixels);
+  see :func:`quality_factor` for the highlight / shadow / total split (defined in
+  ``psbench._quality``, exported here).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ._checks import PsbenchError, as_mask, as_S, choice
+from ._deprecate import renamed_args
+from ._quality import quality_counts, quality_factor
 
 __all__ = [
     "normal_error_map", "normal_error", "normal_error_stats", "ne_by_zenith",
@@ -49,12 +53,14 @@ def _normals(a, name, shape=None):
     return arr
 
 
-def _mean_over(values, mask):
-    v = values[mask] if mask is not None else values.ravel()
+def _mean_over(values, object_mask):
+    v = values[object_mask] if object_mask is not None else values.ravel()
     return float(v.mean()) if v.size else float("nan")
 
 
-
+def _region(object_mask, shape):
+    """The object mask as (H, W) bool, or None for all pixels."""
+    return None if object_mask is None else as_mask(object_mask, shape, "object_mask")
 
 
 # ----------------------------------------------------------------------------- NE
@@ -80,13 +86,14 @@ def normal_error_map(normals, truth):
     return np.degrees(np.arctan2(s, c))
 
 
-def normal_error(normals, truth, mask=None):
-    """Mean angular normal error in degrees over the mask (Eq. 2.28).
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def normal_error(normals, truth, *, object_mask=None):
+    """Mean angular normal error in degrees over the object (Eq. 2.28).
 
     Parameters
     ----------
     normals, truth : (H, W, 3) array_like
-    mask : (H, W) bool, optional
+    object_mask : (H, W) bool, optional
         Pixels to average over; None = all. An empty mask gives NaN.
 
     Returns
@@ -94,22 +101,28 @@ def normal_error(normals, truth, mask=None):
     float
     """
     e = normal_error_map(normals, truth)
-    m = None if mask is None else as_mask(mask, e.shape, "mask")
-    return _mean_over(e, m)
+    return _mean_over(e, _region(object_mask, e.shape))
 
 
-def normal_error_stats(normals, truth, mask=None):
-    """Summary statistics of the angular error over the mask.
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def normal_error_stats(normals, truth, *, object_mask=None):
+    """Summary statistics of the angular error over the object.
+
+    Parameters
+    ----------
+    normals, truth : (H, W, 3) array_like
+    object_mask : (H, W) bool, optional
+        Pixels to count; None = all.
 
     Returns
     -------
     dict
         ``mean``, ``median`` (degrees) and ``lt5``, ``lt10``, ``lt20``: fractions
-        (0..1) of mask pixels whose error is strictly below 5, 10, 20 degrees.
+        (0..1) of object pixels whose error is strictly below 5, 10, 20 degrees.
         All NaN for an empty mask.
     """
     e = normal_error_map(normals, truth)
-    m = None if mask is None else as_mask(mask, e.shape, "mask")
+    m = _region(object_mask, e.shape)
     v = e[m] if m is not None else e.ravel()
     if v.size == 0:
         nan = float("nan")
@@ -119,13 +132,15 @@ def normal_error_stats(normals, truth, mask=None):
                 lt20=float((v < 20).mean()))
 
 
-def ne_by_zenith(normals, truth, mask=None, *, bins=None):
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def ne_by_zenith(normals, truth, *, object_mask=None, bins=None):
     """Mean NE versus the true surface zenith (thesis Fig. 4.9).
 
     Parameters
     ----------
     normals, truth : (H, W, 3) array_like
-    mask : (H, W) bool, optional
+    object_mask : (H, W) bool, optional
+        Pixels to count; None = all.
     bins : int or 1-D array_like of edges in degrees, optional
         Default: 5-degree bins from 0 to 90. An int gives that many equal bins
         over [0, 90]. Pixels with zenith outside the edges are dropped; the
@@ -143,7 +158,7 @@ def ne_by_zenith(normals, truth, mask=None, *, bins=None):
     t = np.asarray(truth, dtype=np.float64)
     tz = t[..., 2] / np.maximum(np.linalg.norm(t, axis=-1), 1e-300)
     zen = np.degrees(np.arccos(np.clip(tz, -1.0, 1.0)))
-    m = as_mask(mask, e.shape, "mask")
+    m = as_mask(object_mask, e.shape, "object_mask")
     if bins is None:
         edges = np.linspace(0.0, 90.0, 19)
     elif np.isscalar(bins):
@@ -253,8 +268,9 @@ def intensity_error_map(images, result, lights=None, *, norm="l2", clamp=False,
     return out
 
 
-def weighted_intensity_error(ring_ie, weights, mask=None, *, per_pixel=False):
-    """Weighted IE of Eq. 2.30: ``sum_j w_j IE_j`` per pixel, mean over the mask.
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def weighted_intensity_error(ring_ie, weights, *, object_mask=None, per_pixel=False):
+    """Weighted IE of Eq. 2.30: ``sum_j w_j IE_j`` per pixel, mean over the object.
 
     Parameters
     ----------
@@ -263,7 +279,8 @@ def weighted_intensity_error(ring_ie, weights, mask=None, *, per_pixel=False):
         images with that ring's solution).
     weights : (rings, H, W) array_like
         Ring weights per pixel (normally summing to 1 over rings).
-    mask : (H, W) bool, optional
+    object_mask : (H, W) bool, optional
+        Pixels to average over; None = all.
     per_pixel : bool
         Return the (H, W) map instead of its mean.
     """
@@ -278,8 +295,7 @@ def weighted_intensity_error(ring_ie, weights, mask=None, *, per_pixel=False):
     ie = np.einsum("jhw,jhw->hw", w, r)
     if per_pixel:
         return ie
-    m = None if mask is None else as_mask(mask, ie.shape, "mask")
-    return _mean_over(ie, m)
+    return _mean_over(ie, _region(object_mask, ie.shape))
 
 
 def _ring_ies(images, result, lights, weights, norm, clamp, average):
@@ -313,9 +329,10 @@ def _ring_ies(images, result, lights, weights, norm, clamp, average):
     return out, w
 
 
-def intensity_error(images, result, lights=None, *, norm="l2", mask=None, weights=None,
+@renamed_args(renamed={"mask": "object_mask"})
+def intensity_error(images, result, lights=None, *, norm="l2", object_mask=None, weights=None,
                     per_pixel=False, clamp=False, valid=None, average=True):
-    """Intensity error (Eqs. 2.29-2.31), mean over the mask.
+    """Intensity error (Eqs. 2.29-2.31), mean over the object.
 
     Parameters
     ----------
@@ -327,7 +344,7 @@ def intensity_error(images, result, lights=None, *, norm="l2", mask=None, weight
     norm : {"l1", "l2", "linf"}
         Norm across images per pixel (normalised by the image count unless
         ``average=False``; see the module docstring).
-    mask : (H, W) bool, optional
+    object_mask : (H, W) bool, optional
         Pixels to average over; None = all. Empty mask -> NaN.
     weights : (rings, H, W) array_like, optional
         Weighted IE (Eq. 2.30): per-ring IE maps are computed from each ring's
@@ -355,16 +372,27 @@ def intensity_error(images, result, lights=None, *, norm="l2", mask=None, weight
                                  valid=valid, average=average)
     if per_pixel:
         return ie
-    m = None if mask is None else as_mask(mask, ie.shape, "mask")
-    return _mean_over(ie, m)
+    return _mean_over(ie, _region(object_mask, ie.shape))
 
 
-def dynamic_range(images, mask=None):
-    """Mean over images of each image's range (max - min over the mask)."""
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def dynamic_range(images, *, object_mask=None):
+    """Mean over images of each image's range (max - min over the object).
+
+    Parameters
+    ----------
+    images : (k, H, W) array_like
+    object_mask : (H, W) bool, optional
+        Pixels the range is taken over; None = all. Empty mask -> NaN.
+
+    Returns
+    -------
+    float
+    """
     from ._checks import as_images
 
     imgs = as_images(images, "images")
-    m = as_mask(mask, imgs.shape[1:], "mask")
+    m = as_mask(object_mask, imgs.shape[1:], "object_mask")
     if not m.any():
         return float("nan")
     v = imgs[:, m]
@@ -374,7 +402,9 @@ def dynamic_range(images, mask=None):
 _image_range = dynamic_range  # ie_relative's keyword shadows the name
 
 
-def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, **kwargs):
+@renamed_args(renamed={"mask": "object_mask"})
+def ie_relative(images, result, lights=None, *, object_mask=None, dynamic_range=None,
+                **kwargs):
     """IE as a percentage of the mean image dynamic range.
 
     ``100 * intensity_error(...) / range``; keyword arguments are passed to
@@ -386,11 +416,11 @@ def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, *
     dynamic_range : float or (k,) array_like, optional
         The range to divide by (its mean for an array), e.g. a Scene's
         ``dynamic_range`` of the clean images. Default: :func:`dynamic_range`
-        of ``images`` over the mask (max - min of each image, averaged).
+        of ``images`` over the object mask (max - min of each image, averaged).
     """
-    ie = intensity_error(images, result, lights, mask=mask, **kwargs)
+    ie = intensity_error(images, result, lights, object_mask=object_mask, **kwargs)
     if dynamic_range is None:
-        dr = _image_range(images, mask)
+        dr = _image_range(images, object_mask=object_mask)
     else:
         dr = np.asarray(dynamic_range, dtype=np.float64)
         if dr.ndim > 1 or dr.size == 0:
@@ -400,115 +430,3 @@ def ie_relative(images, result, lights=None, *, mask=None, dynamic_range=None, *
     if not dr > 0:
         return ie * np.nan if kwargs.get("per_pixel") else float("nan")
     return 100.0 * ie / dr
-
-
-# ----------------------------------------------------------------------------- QF
-def _truth_masks(truth, shape):
-    def get(key):
-        if isinstance(truth, dict):
-            return truth.get(key)
-        return getattr(truth, key, None)
-
-    hi = get("highlight")
-    if hi is None:
-        raise PsbenchError("truth must provide 'highlight' (k, H, W) bool "
-                           "(a Scene or a dict with highlight/self_shadow/cast_shadow)")
-    parts = [get("self_shadow"), get("cast_shadow")]
-    parts = [p for p in parts if p is not None]
-    if not parts:
-        sh = get("shadow")
-        if sh is None:
-            raise PsbenchError("truth must provide 'self_shadow' and/or 'cast_shadow' "
-                               "(or 'shadow') (k, H, W) bool")
-        parts = [sh]
-    out = []
-    for name, arr in [("highlight", hi)] + [("shadow", p) for p in parts]:
-        a = np.asarray(arr)
-        if a.shape != tuple(shape):
-            raise PsbenchError(f"truth.{name} must have shape {tuple(shape)} like flagged, "
-                               f"got {a.shape}")
-        out.append(a.astype(bool, copy=False))
-    sh = out[1]
-    for p in out[2:]:
-        sh = sh | p
-    return out[0], sh
-
-
-def quality_counts(flagged, truth, mask=None):
-    """TP / FP / FN counts behind :func:`quality_factor`.
-
-    Returns
-    -------
-    dict
-        ``{cls: {"tp": int, "fp": int, "fn": int}}`` for ``hi``, ``sh``, ``total``.
-    """
-    f = np.asarray(flagged)
-    if f.ndim != 3:
-        raise PsbenchError(f"flagged must have shape (k, H, W), got {f.shape}")
-    if f.dtype != bool:
-        raise PsbenchError(f"flagged must be a bool array (e.g. ~result.valid), got {f.dtype}")
-    hi, sh = _truth_masks(truth, f.shape)
-    m = as_mask(mask, f.shape[1:], "mask")
-    f, hi, sh = f[:, m], hi[:, m], sh[:, m]
-    pos = hi | sh
-    fp = int(np.count_nonzero(f & ~pos))  # false alarms: in neither class
-    return {
-        "hi": {"tp": int(np.count_nonzero(f & hi)), "fp": fp,
-               "fn": int(np.count_nonzero(~f & hi))},
-        "sh": {"tp": int(np.count_nonzero(f & sh)), "fp": fp,
-               "fn": int(np.count_nonzero(~f & sh))},
-        "total": {"tp": int(np.count_nonzero(f & pos)), "fp": fp,
-                  "fn": int(np.count_nonzero(~f & pos))},
-    }
-
-
-def quality_factor(flagged, truth, mask=None, *, targets=None):
-    """Quality factor QF = TP / (TP + FP + FN) of a mask (Eq. 2.32).
-
-    Counted over observations: k images x mask pixels.
-
-    Parameters
-    ----------
-    flagged : (k, H, W) bool
-        Observations the method masked out (``~result.valid``).
-    truth : Scene-like or dict
-        ``highlight``, ``self_shadow``, ``cast_shadow`` (k, H, W) bool
-        (or ``shadow`` instead of the two shadow maps). shadow = self | cast.
-    mask : (H, W) bool, optional
-        Object pixels to count; None = all.
-    targets : iterable of {"hi", "sh"}, optional
-        Classes the method is meant to detect. A class not listed is reported
-        as NaN (Table 5.3's N/A, e.g. ``targets=("hi",)`` for Re); an empty
-        list (None PS, CJ) makes all three NaN. Default: compute all.
-
-    Returns
-    -------
-    dict
-        ``hi``, ``sh``, ``total`` as floats:
-
-        * total: positives P = highlight | shadow; TP = flagged & P,
-          FN = ~flagged & P, FP = flagged & ~P.
-        * hi: TP = flagged & highlight, FN = ~flagged & highlight,
-          FP = flagged & ~highlight & ~shadow (false alarms that the other
-          class does not explain; flagging a shadow is neither a hit nor a
-          false alarm for the highlight QF).
-        * sh: symmetric (TP = flagged & shadow, FN = ~flagged & shadow, same FP).
-
-        NaN when TP + FP + FN = 0 (class empty and nothing falsely flagged);
-        report it as N/A. An observation both highlight and shadow counts for
-        both classes. Table 5.3's N/A for methods that do not target a class
-        (e.g. Sh for "Re") is a decision by mask name: pass ``targets``.
-    """
-    keep = {"hi", "sh", "total"}
-    if targets is not None:
-        targets = {targets} if isinstance(targets, str) else set(targets)
-        bad = targets - {"hi", "sh"}
-        if bad:
-            raise PsbenchError(f"targets may hold 'hi' and 'sh', got {sorted(bad)}")
-        keep = targets | ({"total"} if targets else set())
-    counts = quality_counts(flagged, truth, mask)
-    out = {}
-    for cls, c in counts.items():
-        den = c["tp"] + c["fp"] + c["fn"]
-        out[cls] = c["tp"] / den if den and cls in keep else float("nan")
-    return out

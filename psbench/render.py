@@ -25,7 +25,9 @@ from typing import Any
 import numpy as np
 
 from ._checks import PsbenchError, choice
+from ._deprecate import warn_renamed
 from .lights import Layout, layout
+from ._shading import Shader
 from .shadowmap import point_shadow_map, shadow_map
 
 __all__ = ["render", "Scene", "MODELS", "SHADOWS"]
@@ -54,7 +56,7 @@ class Scene:
     cast_shadow : (k, H, W) bool
         Occluded by the height field and not self-shadowed, on the object.
     surface : object
-        The rendered surface (``.height .mask .normals``).
+        The rendered surface (``.height .object_mask .normals``).
     lights : Layout
         The lights (with ``positions`` for near lights).
     model : str
@@ -95,7 +97,7 @@ class Scene:
     @property
     def object_mask(self) -> np.ndarray:
         """(H, W) bool object mask of the surface."""
-        return np.asarray(self.surface.mask, dtype=bool)
+        return np.asarray(_object_mask(self.surface, stacklevel=4), dtype=bool)
 
     @property
     def k(self) -> int:
@@ -143,7 +145,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
 
     Parameters
     ----------
-    surface : object with ``.height (H, W)``, ``.mask (H, W) bool``, ``.normals (H, W, 3)``
+    surface : object with ``.height (H, W)``, ``.object_mask (H, W) bool``, ``.normals (H, W, 3)``
         E.g. :func:`psbench.make_surface`; any object with these fields works.
         Heights are in pixel units. The whole height field casts shadows (also
         outside the mask); non-finite heights are treated as the lowest height.
@@ -220,7 +222,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     Scene
         ``.images (k, H, W) float32``, ground truth ``.highlight .self_shadow
         .cast_shadow (k, H, W) bool``, ``.sigma (k,)``, lazily computed
-        ``.diffuse .specular .clean``. Pixels outside ``surface.mask`` are 0.
+        ``.diffuse .specular .clean``. Pixels outside ``surface.object_mask`` are 0.
     """
     model = choice(model, MODELS, "model")
     if not (isinstance(shadows, (bool, np.bool_)) or shadows in ("all", "self", "none")):
@@ -274,7 +276,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
                                f"(highest point {top:g})")
         perspective = f
 
-    shader = _Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
+    shader = Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
                      pos, bool(falloff), perspective, clamp=not (isinstance(shadows, str)
                                                                  and shadows == "none"))
     occluded = None
@@ -351,134 +353,6 @@ def _quantize(images, mask, bits):
         img *= np.float32(top / levels)
 
 
-class _Shader:
-    """Per-light shading of one surface; float32 (H, W) planes."""
-
-    def __init__(self, height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
-                 positions, falloff, perspective, clamp=True):
-        self.mask = mask
-        self.clamp = clamp
-        self._t = None  # work buffers, allocated on first use
-        self.lay = lay
-        self.model = model
-        self.rho_d, self.rho_s = rho_d, rho_s
-        self.m, self.phong_m = np.float32(m), np.float32(phong_m)
-        self.positions = positions
-        self.falloff = falloff
-        self.perspective = perspective
-        self.nx = np.ascontiguousarray(normals[..., 0])
-        self.ny = np.ascontiguousarray(normals[..., 1])
-        self.nz = np.ascontiguousarray(normals[..., 2])
-        H, W = mask.shape
-        self.x = (np.arange(W, dtype=np.float32) - np.float32((W - 1) / 2))[None, :]
-        self.y = (np.float32((H - 1) / 2) - np.arange(H, dtype=np.float32))[:, None]
-        self.h = height
-        self.view = None
-        if perspective is not None:
-            vz = np.float32(perspective) - height
-            vx = np.broadcast_to(-self.x, (H, W))
-            vy = np.broadcast_to(-self.y, (H, W))
-            inv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
-            self.view = (vx * inv, vy * inv, vz * inv)
-
-    def _dot(self, ax, ay, az, out):
-        """out = n . (ax, ay, az) (scalars or (H, W) planes), without temporaries."""
-        t = self._t
-        np.multiply(self.nx, ax, out=out)
-        np.multiply(self.ny, ay, out=t)
-        out += t
-        np.multiply(self.nz, az, out=t)
-        out += t
-        return out
-
-    def light(self, i):
-        """Return (diffuse, specular or None, lit) for light i, shadows not applied
-        except that both terms are meaningless where ``lit`` is False.
-
-        The arrays are work buffers of this shader, valid until the next call
-        (fresh 16 MB temporaries per operation would cost more in page faults at
-        2048^2 than the arithmetic itself).
-        """
-        if self._t is None:
-            shape = self.mask.shape
-            self._t, self._sn, self._sp = (np.empty(shape, np.float32) for _ in range(3))
-            self._lit = np.empty(shape, bool)
-        mu = float(self.lay.power[i])
-        scale = None
-        if self.positions is None:
-            dx, dy, dz = (float(c) for c in self.lay.directions[i])
-        else:
-            L = self.positions[i]
-            dx = np.float32(L[0]) - self.x
-            dy = np.float32(L[1]) - self.y
-            dz = np.float32(L[2]) - self.h
-            dist2 = dx * dx + dy * dy + dz * dz
-            inv = 1.0 / np.sqrt(dist2)
-            dx, dy, dz = dx * inv, dy * inv, dz * inv
-            if self.falloff:
-                scale = np.float32(L @ L) / dist2
-        sn = self._dot(dx, dy, dz, self._sn)
-        lit = np.greater(sn, 0.0, out=self._lit)
-        spec = None
-        if self.model != "lambert":
-            vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
-            if self.model == "ts":
-                hx, hy, hz = dx + vx, dy + vy, dz + vz
-                hn = np.sqrt(hx * hx + hy * hy + hz * hz)
-                if np.ndim(hn) == 0:  # constant bisector n_h
-                    c = self._dot(hx / hn, hy / hn, hz / hn, self._sp)
-                else:
-                    c = self._dot(hx, hy, hz, self._sp)
-                    c /= hn
-                np.clip(c, -1.0, 1.0, out=c)
-                a = np.arccos(c, out=c)
-                a *= self.m
-                np.square(a, out=a)
-                np.negative(a, out=a)
-                spec = np.exp(a, out=a)
-            else:  # phong: r.v = 2 (s.n)(n.v) - s.v
-                rv = self._dot(vx, vy, vz, self._sp)
-                rv *= sn
-                rv *= 2.0
-                rv -= dx * vx + dy * vy + dz * vz
-                np.maximum(rv, 0.0, out=rv)
-                spec = np.power(rv, self.phong_m, out=rv)
-            if np.ndim(self.rho_s) == 0:
-                spec *= np.float32(mu * float(self.rho_s))
-            else:
-                spec *= np.float32(mu)
-                spec *= self.rho_s
-        diff = sn
-        if np.ndim(self.rho_d) == 0:
-            diff *= np.float32(mu * float(self.rho_d))
-        else:
-            diff *= np.float32(mu)
-            diff *= self.rho_d
-        if scale is not None:
-            diff *= scale
-            if spec is not None:
-                spec *= scale
-        if not self.clamp:  # shadows="none": nothing is dark
-            lit[...] = True
-        return diff, spec, lit
-
-    def components(self, dark):
-        """Clean diffuse and specular stacks with ``dark`` (k, H, W) set to 0."""
-        k = self.lay.k
-        H, W = self.mask.shape
-        diff = np.empty((k, H, W), dtype=np.float32)
-        spec = np.zeros((k, H, W), dtype=np.float32)
-        for i in range(k):
-            d, s, lit = self.light(i)
-            off = dark[i] | ~lit | ~self.mask
-            diff[i] = d
-            diff[i][off] = 0.0
-            if s is not None:
-                spec[i] = s
-                spec[i][off] = 0.0
-        return diff, spec
-
-
 def _nonneg(value, name):
     try:
         v = float(value)
@@ -513,19 +387,31 @@ def _albedo(value, name, shape):
     return a
 
 
+def _object_mask(surface, *, stacklevel=3):
+    """``surface.object_mask``; a surface-like object with only the old ``.mask`` still
+    works, with a DeprecationWarning."""
+    if hasattr(surface, "object_mask"):
+        return surface.object_mask
+    warn_renamed(f"a surface ({type(surface).__name__}) with .mask instead of .object_mask",
+                 ".object_mask", stacklevel=stacklevel)
+    return surface.mask
+
+
 def _surface(surface):
-    missing = [f for f in ("height", "mask", "normals") if not hasattr(surface, f)]
+    missing = [f for f in ("height", "normals") if not hasattr(surface, f)]
+    if not (hasattr(surface, "object_mask") or hasattr(surface, "mask")):
+        missing.insert(1, "object_mask")
     if missing:
         raise PsbenchError(
-            f"surface must have fields height, mask and normals (e.g. psbench.make_surface(...)); "
-            f"{type(surface).__name__} lacks {', '.join(missing)}")
+            f"surface must have fields height, object_mask and normals (e.g. "
+            f"psbench.make_surface(...)); {type(surface).__name__} lacks {', '.join(missing)}")
     height = np.asarray(surface.height)
     if height.ndim != 2 or height.dtype == bool or not np.issubdtype(height.dtype, np.number):
         raise PsbenchError(f"surface.height must be a numeric (H, W) array, got shape {height.shape}")
     H, W = height.shape
-    mask = np.asarray(surface.mask)
+    mask = np.asarray(_object_mask(surface, stacklevel=5))
     if mask.shape != (H, W):
-        raise PsbenchError(f"surface.mask must have shape {(H, W)}, got {mask.shape}")
+        raise PsbenchError(f"surface.object_mask must have shape {(H, W)}, got {mask.shape}")
     mask = mask.astype(bool, copy=False)
     normals = np.asarray(surface.normals, dtype=np.float32)
     if normals.shape != (H, W, 3):
@@ -533,12 +419,12 @@ def _surface(surface):
     height = height.astype(np.float32, copy=False)
     fin = np.isfinite(height)
     if not fin[mask].all():
-        raise PsbenchError("surface.height holds NaN/inf inside surface.mask")
+        raise PsbenchError("surface.height holds NaN/inf inside surface.object_mask")
     if not fin.all():
         height = np.where(fin, height, np.float32(height[fin].min() if fin.any() else 0.0))
     nfin = np.isfinite(normals).all(axis=2)
     if not nfin[mask].all():
-        raise PsbenchError("surface.normals holds NaN/inf inside surface.mask")
+        raise PsbenchError("surface.normals holds NaN/inf inside surface.object_mask")
     if not nfin.all():
         normals = np.where(nfin[..., None], normals, np.float32([0, 0, 1]))
     return height, mask, normals

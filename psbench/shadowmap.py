@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 
 from ._checks import PsbenchError
+from ._deprecate import renamed_args
 
 __all__ = ["shadow_map", "point_shadow_map", "light_directions"]
 
@@ -77,19 +78,21 @@ def light_directions(directions, name="directions"):
     return d
 
 
-def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, oversample=2):
+@renamed_args(renamed={"mask": "object_mask"})
+def shadow_map(height, directions, *, object_mask=None, bias=0.5, background=None,
+               oversample=2):
     """Cast-shadow maps of a height field for distant lights.
 
     Parameters
     ----------
     height : (H, W) array_like
         Heights in pixel units (z up, towards the camera). Non-finite heights are
-        treated like pixels outside ``mask``.
+        treated like pixels outside ``object_mask``.
     directions : (k, 3) or (3,) array_like, or Layout
         Unit vectors from the surface towards each light (normalised here),
         z >= 0. Light power does not matter.
-    mask : (H, W) bool, optional
-        Object mask. Outside it heights are replaced by ``background`` (so they
+    object_mask : (H, W) bool, optional
+        Object region. Outside it heights are replaced by ``background`` (so they
         cast no shadow above that level) and the result is False (points outside
         the object receive no shadow). None: every pixel is part of the surface.
     bias : float, default 0.5
@@ -97,8 +100,8 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
         above the light ray. It suppresses self-shadow acne on noisy heights
         (e.g. heights integrated from estimated normals). 0 gives the exact test.
     background : float, optional
-        Height given to pixels outside ``mask``; default the lowest height inside
-        the mask.
+        Height given to pixels outside ``object_mask``; default the lowest height
+        inside it.
     oversample : int, default 2
         Working-grid samples per pixel across the rays (1..4). 2 resolves the shadow
         edges of sharp occluders (steps, pillars) better than 1 (agreement with a
@@ -117,7 +120,7 @@ def shadow_map(height, directions, *, mask=None, bias=0.5, background=None, over
     """
     d = light_directions(directions)
     _check_oversample(oversample)
-    h, inside, bias = _prepare(height, mask, bias, background)
+    h, inside, bias = _prepare(height, object_mask, bias, background)
     H, W = np.shape(height)
     out = np.zeros((d.shape[0], H, W), dtype=bool)
     if h is None:
@@ -150,7 +153,7 @@ def _check_oversample(oversample):
         raise PsbenchError(f"oversample must be an integer in 1..4, got {oversample!r}")
 
 
-def _prepare(height, mask, bias, background):
+def _prepare(height, object_mask, bias, background):
     """Validate; return (float32 heights with the background applied or None when no
     pixel is inside, inside mask or None when every pixel is inside, bias)."""
     h = np.asarray(height)
@@ -167,10 +170,10 @@ def _prepare(height, mask, bias, background):
         raise PsbenchError(f"bias must be a finite number >= 0 (pixel-height units), got {bias}")
     h = h.astype(np.float32)
     inside = np.isfinite(h)
-    if mask is not None:
-        m = np.asarray(mask)
+    if object_mask is not None:
+        m = np.asarray(object_mask)
         if m.shape != (H, W):
-            raise PsbenchError(f"mask must have shape {(H, W)}, got {m.shape}")
+            raise PsbenchError(f"object_mask must have shape {(H, W)}, got {m.shape}")
         inside &= m.astype(bool)
     if not inside.any():
         return None, inside, bias
@@ -247,7 +250,8 @@ def _one(h, hb, hpad, ux, uy, t, over, out, work):
     np.greater(horizon, thr, out=out)
 
 
-def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
+@renamed_args(renamed={"mask": "object_mask"})
+def point_shadow_map(height, positions, *, object_mask=None, bias=0.5, background=None,
                      oversample=2):
     """Cast-shadow maps of a height field for near point lights.
 
@@ -258,7 +262,7 @@ def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
     positions : (k, 3) or (3,) array_like
         Light positions in pixel units: origin at the image centre on the height
         datum, x right, y up, z up (psbench's frame).
-    mask, bias, background
+    object_mask, bias, background
         As in :func:`shadow_map`.
     oversample : int, default 2
         Samples per pixel along the radius and along the arc at the farthest
@@ -283,7 +287,7 @@ def point_shadow_map(height, positions, *, mask=None, bias=0.5, background=None,
     Radial samples do not fall on pixel centres, so unlike :func:`shadow_map` the
     edges of sharp occluders are resolved to about a radial step.
     """
-    h, inside, bias = _prepare(height, mask, bias, background)
+    h, inside, bias = _prepare(height, object_mask, bias, background)
     pos = np.asarray(positions, dtype=np.float64)
     if pos.ndim == 1:
         pos = pos[None, :]

@@ -32,7 +32,7 @@ def test_ie_decomposition_by_surface_zenith():
     df = A.ie_decomposition("sombrero2", zeniths=(60,), size=SIZE, by="surface")
     tot = df[df.part == "total"]
     from psbench.surfaces import make_surface
-    assert tot["pixels"].sum() == make_surface("sombrero2", size=SIZE).mask.sum()
+    assert tot["pixels"].sum() == make_surface("sombrero2", size=SIZE).object_mask.sum()
     # with 60-degree sources shadows start beyond Z_surface = 90 - 60 = 30 (Fig. 4.10)
     sh = df[df.part == "self_shadow"].dropna(subset=["ie"])
     assert (sh[sh.hi <= 30]["ie"] == 0).all()

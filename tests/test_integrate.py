@@ -42,7 +42,7 @@ def _err(h, z, region):
 def test_hemisphere_depth_within_one_percent(method, use_mask):
     R = 60.0
     n, z, disc, interior = _hemisphere(R=R)
-    h = integrate(n, disc if use_mask else None, method=method)
+    h = integrate(n, object_mask=disc if use_mask else None, method=method)
     assert h.dtype == np.float32 and h.shape == z.shape
     rms, mx = _err(h, z, interior)
     # max abs error over the interior (r < 0.9 R), up to a constant: < 1 % of height
@@ -99,18 +99,18 @@ def test_mask_ignores_garbage_outside(method):
     bad = n.copy()
     g = rng.normal(size=bad.shape).astype(np.float32)
     bad[~disc] = g[~disc]  # random, some back-facing, outside the object
-    h_good = integrate(n, disc, method=method)
-    h_bad = integrate(bad, disc, method=method)
+    h_good = integrate(n, object_mask=disc, method=method)
+    h_bad = integrate(bad, object_mask=disc, method=method)
     np.testing.assert_allclose(h_bad, h_good, atol=1e-3)
     assert np.all(h_bad[~disc] == 0)
 
 
 def test_datum_min_and_mean():
     n, z, disc, _ = _hemisphere(N=100, R=35.0)
-    h = integrate(n, disc)
+    h = integrate(n, object_mask=disc)
     assert abs(float(h[disc].min())) < 1e-4
     assert np.all(h[~disc] == 0)
-    hm = integrate(n, disc, datum="mean")
+    hm = integrate(n, object_mask=disc, datum="mean")
     assert abs(float(hm[disc].mean())) < 1e-3
     np.testing.assert_allclose(hm[disc] - hm[disc].mean(), h[disc] - h[disc].mean(), atol=1e-3)
 
@@ -123,7 +123,7 @@ def test_tilted_disc_under_mask_exact(method):
     disc = x ** 2 + y ** 2 < 35 ** 2
     p, q = 0.5, -0.3
     n = _normals_from_grad(np.full((H, W), p), np.full((H, W), q))
-    h = integrate(n, disc, method=method)
+    h = integrate(n, object_mask=disc, method=method)
     rms, mx = _err(h, p * x + q * y, disc)
     assert mx < 1e-3, mx
 
@@ -134,7 +134,7 @@ def test_membrane_bias_of_poisson_dct():
     x, y = _grid(H, W)
     disc = x ** 2 + y ** 2 < 35 ** 2
     n = _normals_from_grad(np.full((H, W), 0.5), np.zeros((H, W)))
-    h = integrate(n, disc, method="poisson-dct")
+    h = integrate(n, object_mask=disc, method="poisson-dct")
     slope = np.polyfit(x[disc], h[disc], 1)[0]
     assert 0.3 < slope < 0.49
 
@@ -145,8 +145,8 @@ def test_poisson_matches_sparse_on_noisy_masked_normals():
     m = disc.copy()
     m[40:50, 45:] = False  # notch cut into the disc
     noisy = n + 0.1 * rng.normal(size=n.shape).astype(np.float32)
-    a = integrate(noisy, m, method="poisson", tol=1e-8)
-    b = integrate(noisy, m, method="poisson-sparse")
+    a = integrate(noisy, object_mask=m, method="poisson", tol=1e-8)
+    b = integrate(noisy, object_mask=m, method="poisson-sparse")
     np.testing.assert_allclose(a, b, atol=2e-3)
 
 
@@ -158,7 +158,7 @@ def test_components_tied_to_common_base():
     m[10:50, 70:110] = True
     n = _normals_from_grad(np.full((H, W), 0.1), np.zeros((H, W)))
     for method in ("poisson", "poisson-sparse"):
-        h = integrate(n, m, method=method)
+        h = integrate(n, object_mask=m, method=method)
         left, right = h[:, :60][m[:, :60]], h[:, 60:][m[:, 60:]]
         # each square keeps its own tilt exactly
         np.testing.assert_allclose(h[20, 49] - h[20, 10], 0.1 * 39, rtol=1e-4)
@@ -177,7 +177,7 @@ def test_steep_and_backfacing_normals_stay_finite():
     for method in ("poisson", "poisson-dct", "fc", "poisson-sparse"):
         h = integrate(n, method=method)
         assert np.isfinite(h).all()
-        h = integrate(n, m, method=method)
+        h = integrate(n, object_mask=m, method=method)
         assert np.isfinite(h).all()
     gc, gr = gradients(n)
     assert np.abs(gc).max() <= 1 / NZ_MIN + 1e-9 and np.abs(gr).max() <= 1 / NZ_MIN + 1e-9
@@ -186,14 +186,14 @@ def test_steep_and_backfacing_normals_stay_finite():
 def test_empty_mask_gives_zeros():
     n = np.zeros((8, 9, 3), np.float32)
     n[..., 2] = 1
-    assert np.all(integrate(n, np.zeros((8, 9), bool)) == 0)
+    assert np.all(integrate(n, object_mask=np.zeros((8, 9), bool)) == 0)
 
 
 @pytest.mark.parametrize("bad, kw, msg", [
     (np.zeros((8, 8)), {}, "normals must have shape"),
     (np.zeros((8, 8, 4)), {}, "normals must have shape"),
     (np.full((8, 8, 3), np.nan), {}, "NaN"),
-    (np.zeros((8, 8, 3)), {"mask": np.ones((8, 7), bool)}, "mask must have shape"),
+    (np.zeros((8, 8, 3)), {"object_mask": np.ones((8, 7), bool)}, "object_mask must have shape"),
     (np.zeros((8, 8, 3)), {"method": "magic"}, "method"),
     (np.zeros((8, 8, 3)), {"datum": "max"}, "datum"),
     (np.zeros((8, 8, 3)), {"tol": 0}, "tol"),
@@ -209,13 +209,14 @@ def test_ragged_mask_and_cg_fallback_match_sparse():
     n = rng.normal(size=(40, 44, 3)).astype(np.float32)
     n[..., 2] = np.abs(n[..., 2]) + 0.3
     ragged = rng.random((40, 44)) < 0.6  # many small components: direct solve
-    np.testing.assert_allclose(integrate(n, ragged), integrate(n, ragged, method="poisson-sparse"),
+    np.testing.assert_allclose(integrate(n, object_mask=ragged),
+                               integrate(n, object_mask=ragged, method="poisson-sparse"),
                                atol=1e-4)
     # CG stopped early on a large component falls back to the direct solver
     nh, _, disc, _ = _hemisphere(N=80, R=30.0)
     disc[38:42, 40:] = False
-    np.testing.assert_allclose(integrate(nh, disc, maxiter=1),
-                               integrate(nh, disc, method="poisson-sparse"), atol=1e-4)
+    np.testing.assert_allclose(integrate(nh, object_mask=disc, maxiter=1),
+                               integrate(nh, object_mask=disc, method="poisson-sparse"), atol=1e-4)
 
 
 def test_package_attribute_is_the_function():
@@ -240,9 +241,9 @@ def test_recovers_package_surfaces(name):
     from psbench.surfaces import make_surface
 
     s = make_surface(name, size=256)  # steep rims need some resolution
-    h = integrate(s.normals, s.mask)
-    e = (h - s.height)[s.mask]
+    h = integrate(s.normals, object_mask=s.object_mask)
+    e = (h - s.height)[s.object_mask]
     e -= e.mean()
-    relief = np.ptp(s.height[s.mask])
+    relief = np.ptp(s.height[s.object_mask])
     assert np.sqrt((e ** 2).mean()) < 5e-3 * relief
     assert np.abs(e).max() < 5e-2 * relief

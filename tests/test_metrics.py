@@ -53,9 +53,9 @@ def test_ne_scale_invariant_and_masked():
     r[:, :5] = n[:, :5] * 3.0  # parallel, longer: 0 degrees
     m = np.zeros(n.shape[:2], bool)
     m[:, 5:] = True
-    assert M.normal_error(r, n, m) == pytest.approx(10.0, rel=1e-6)
+    assert M.normal_error(r, n, object_mask=m) == pytest.approx(10.0, rel=1e-6)
     assert M.normal_error(r, n) == pytest.approx(5.0, rel=1e-6)
-    assert np.isnan(M.normal_error(r, n, np.zeros_like(m)))
+    assert np.isnan(M.normal_error(r, n, object_mask=np.zeros_like(m)))
 
 
 def test_ne_stats_fractions():
@@ -73,7 +73,7 @@ def test_ne_stats_fractions():
     assert s["mean"] == pytest.approx(angles.mean(), rel=1e-9)
     assert s["median"] == pytest.approx(np.median(angles), rel=1e-9)
     m = angles < 12
-    s2 = M.normal_error_stats(est, truth, m)
+    s2 = M.normal_error_stats(est, truth, object_mask=m)
     assert s2["lt20"] == 1.0 and s2["lt5"] == pytest.approx(4 / m.sum())
 
 
@@ -94,7 +94,7 @@ def test_ne_by_zenith_bins():
     assert df["zenith"].tolist() == [5.0, 27.5, 67.5]
     m = np.zeros((H, W), bool)
     m[:, :2] = True
-    assert M.ne_by_zenith(est, truth, m, bins=3)["count"].sum() == 12
+    assert M.ne_by_zenith(est, truth, object_mask=m, bins=3)["count"].sum() == 12
 
 
 @pytest.mark.parametrize("a, b, msg", [
@@ -110,7 +110,7 @@ def test_ne_bad_shapes(a, b, msg):
 def test_ne_bad_mask():
     n = _rand_normals()
     with pytest.raises(PsbenchError, match="mask must have shape"):
-        M.normal_error(n, n, np.ones((3, 3), bool))
+        M.normal_error(n, n, object_mask=np.ones((3, 3), bool))
 
 
 # ------------------------------------------------------------------ IE
@@ -151,7 +151,7 @@ def test_ie_planted_residual():
     assert M.intensity_error(imgs, res, norm="l1") == pytest.approx(0.7 / 4 / (H * W), rel=1e-3)
     m = np.zeros((H, W), bool)
     m[2, 3] = m[0, 0] = True
-    assert M.intensity_error(imgs, res, norm="linf", mask=m) == pytest.approx(0.2, rel=1e-4)
+    assert M.intensity_error(imgs, res, norm="linf", object_mask=m) == pytest.approx(0.2, rel=1e-4)
     # plain vector norms of Eq. 2.31's text
     raw = M.intensity_error(imgs, res, norm="l2", per_pixel=True, average=False)
     assert raw[2, 3] == pytest.approx(np.sqrt(0.21), rel=1e-4)
@@ -159,7 +159,7 @@ def test_ie_planted_residual():
                              average=False)[2, 3] == pytest.approx(0.7, rel=1e-4)
     # explicit lights override result.lights
     res2 = SimpleNamespace(normals=n, albedo=rho, lights=S * 2)
-    assert M.intensity_error(imgs, res2, S, norm="linf", mask=m) == pytest.approx(0.2, rel=1e-4)
+    assert M.intensity_error(imgs, res2, S, norm="linf", object_mask=m) == pytest.approx(0.2, rel=1e-4)
 
 
 def test_ie_clamp_and_valid():
@@ -197,7 +197,7 @@ def test_weighted_ie():
     m[0, 0] = True
     w[0, 0, 0] = 1.0  # all weight on ring 0 at (0, 0)
     w[1, 0, 0] = 0.0
-    assert M.weighted_intensity_error(np.stack([ie1, ie2]), w, m) == pytest.approx(2.0)
+    assert M.weighted_intensity_error(np.stack([ie1, ie2]), w, object_mask=m) == pytest.approx(2.0)
     with pytest.raises(PsbenchError, match="weights must have shape"):
         M.weighted_intensity_error(np.stack([ie1, ie2]), w[:1])
 
@@ -245,7 +245,7 @@ def test_ie_relative():
     (dict(images=np.zeros((3, 4, 5)), result=np.zeros((4, 5, 3)), lights=np.eye(3),
           valid=np.ones((3, 4), bool)), "valid must have shape"),
     (dict(images=np.zeros((3, 4, 5)), result=np.zeros((4, 5, 3)), lights=np.eye(3),
-          mask=np.ones((5, 4), bool)), "mask must have shape"),
+          object_mask=np.ones((5, 4), bool)), "object_mask must have shape"),
     (dict(images=np.zeros((3, 4, 5)), result=SimpleNamespace(normals=np.zeros((4, 5, 3))),
           lights=np.eye(3)), "albedo"),
 ])
@@ -283,7 +283,7 @@ def test_qf_hand_computed():
 def test_qf_mask_and_perfect():
     fl, truth = _qf_case()
     m = np.array([[1, 1, 1, 0, 0, 1]], bool)  # drop the false-alarm columns 3, 4
-    q = M.quality_factor(fl, truth, m)
+    q = M.quality_factor(fl, truth, object_mask=m)
     # hi: TP 1, FN 1, FP 0 -> 1/2; sh: TP 2, FN 1 -> 2/3; total: 3/5
     assert q == pytest.approx(dict(hi=1 / 2, sh=2 / 3, total=3 / 5))
     pos = truth["highlight"] | truth["self_shadow"] | truth["cast_shadow"]
@@ -331,7 +331,7 @@ def test_qf_bad_input():
     with pytest.raises(PsbenchError, match="highlight"):
         M.quality_factor(fl, dict(self_shadow=truth["self_shadow"]))
     with pytest.raises(PsbenchError, match="mask must have shape"):
-        M.quality_factor(fl, truth, np.ones((2, 2), bool))
+        M.quality_factor(fl, truth, object_mask=np.ones((2, 2), bool))
 
 
 # ------------------------------------------------------------------ with rendered scenes
@@ -344,11 +344,11 @@ def test_metrics_on_rendered_scene():
     b = surf.normals.astype(np.float64)  # albedo 1
     # attached shadows clamp the images: the clamped prediction is exact,
     # the linear one is not unless shadowed observations are left out
-    assert M.intensity_error(sc.images, b, lay, mask=surf.mask, clamp=True) < 1e-5
-    assert M.intensity_error(sc.images, b, lay, mask=surf.mask) > 1e-3
-    assert M.intensity_error(sc.images, b, lay, mask=surf.mask, valid=~sc.shadow) < 1e-5
+    assert M.intensity_error(sc.images, b, lay, object_mask=surf.object_mask, clamp=True) < 1e-5
+    assert M.intensity_error(sc.images, b, lay, object_mask=surf.object_mask) > 1e-3
+    assert M.intensity_error(sc.images, b, lay, object_mask=surf.object_mask, valid=~sc.shadow) < 1e-5
     # QF with the Scene itself as truth: flagging exactly the truth is perfect
     sc2 = ps.render(surf, lay, model="ts")
-    q = M.quality_factor(sc2.highlight | sc2.shadow, sc2, surf.mask)
+    q = M.quality_factor(sc2.highlight | sc2.shadow, sc2, object_mask=surf.object_mask)
     assert q == dict(hi=1.0, sh=1.0, total=1.0)
-    assert M.normal_error(surf.normals, surf.normals, surf.mask) == pytest.approx(0, abs=1e-3)
+    assert M.normal_error(surf.normals, surf.normals, object_mask=surf.object_mask) == pytest.approx(0, abs=1e-3)

@@ -99,7 +99,7 @@ def test_agrees_with_ray_march_on_library_surfaces():
     dirs = np.array([direction(z, p) for z, p in [(45, 0), (60, 135), (30, 250)]])
     for name in ("spheres", "mozart"):
         try:
-            s = surfaces.make_surface(name, 80)
+            s = surfaces.make_surface(name, size=80)
         except Exception as exc:  # pragma: no cover - module still in progress
             pytest.skip(f"make_surface({name!r}) not usable yet: {exc}")
         h = np.asarray(s.height, np.float32)
@@ -208,12 +208,12 @@ def test_mask_outside_neither_casts_nor_receives():
     d = direction(60, 180)  # light towards -x: the block would shadow columns >= 18
     unmasked = shadow_map(h, d)[0]
     assert unmasked[28:36, 20:40].any()
-    masked = shadow_map(h, d, mask=mask)[0]
+    masked = shadow_map(h, d, object_mask=mask)[0]
     assert not masked.any()
     # a block inside the mask still casts, and nothing outside is reported
     h2 = h.copy()
     h2[28:36, 30:38] = 30.0
-    sm = shadow_map(h2, d, mask=mask)[0]
+    sm = shadow_map(h2, d, object_mask=mask)[0]
     assert sm[28:36, 38:60].any() and not sm[:, :20].any()
 
 
@@ -222,9 +222,9 @@ def test_mask_background_level():
     mask = np.zeros((32, 32), bool)
     mask[:, 16:] = True
     d = direction(45, 180)
-    assert not shadow_map(h, d, mask=mask).any()
+    assert not shadow_map(h, d, object_mask=mask).any()
     # a background above the object casts onto it
-    sm = shadow_map(h, d, mask=mask, background=10.0)[0]
+    sm = shadow_map(h, d, object_mask=mask, background=10.0)[0]
     assert sm[:, 16:20].all() and not sm[:, :16].any()
 
 
@@ -268,7 +268,7 @@ def test_horizon_light():
     (dict(directions=[[1, 0, -1]]), "below the horizon"),
     (dict(directions=[[0, 0, 0]]), "zero"),
     (dict(bias=-1), "bias"),
-    (dict(mask=np.ones((3, 3), bool)), "mask"),
+    (dict(object_mask=np.ones((3, 3), bool)), "object_mask"),
 ])
 def test_bad_input(kwargs, match):
     args = dict(height=np.zeros((8, 8)), directions=[[0.5, 0, 1]])

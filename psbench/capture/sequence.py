@@ -23,7 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import _fmt_rows, _json_default, atomic_dir, write_image
+from .._deprecate import renamed_args
+from ..io import atomic_dir, write_image
+from ..io._common import json_default
+from ..io._write import fmt_rows
 from .controller import CaptureError
 
 __all__ = ["capture", "capture_sequence", "capture_all", "Progress"]
@@ -82,17 +85,17 @@ def capture_sequence(controller, camera, folder, *, leds, current_mA, dark=True,
     return names
 
 
-def _write_layout(folder, names, lights, meta, mask=None, normals=None):
+def _write_layout(folder, names, lights, meta, object_mask=None, normals=None):
     folder = Path(folder)
     k = len(names)
     (folder / "filenames.txt").write_text("".join(n + "\n" for n in names))
-    (folder / "light_directions.txt").write_text(_fmt_rows(lights.directions))
-    (folder / "light_intensities.txt").write_text(_fmt_rows(np.ones((k, 3))))
-    if mask is not None:
-        write_image(folder / "mask.png", np.asarray(mask, bool).astype(np.uint8) * 255)
+    (folder / "light_directions.txt").write_text(fmt_rows(lights.directions))
+    (folder / "light_intensities.txt").write_text(fmt_rows(np.ones((k, 3))))
+    if object_mask is not None:
+        write_image(folder / "mask.png", np.asarray(object_mask, bool).astype(np.uint8) * 255)
     if normals is not None:
         np.save(folder / "normals.npy", np.asarray(normals, np.float32))
-    (folder / "psbench.json").write_text(json.dumps(meta, indent=1, default=_json_default))
+    (folder / "psbench.json").write_text(json.dumps(meta, indent=1, default=json_default))
 
 
 def _identify(controller, k):
@@ -114,8 +117,9 @@ def _base_meta(controller, camera, lights, leds, current_mA, fw, n_leds, extra):
     return meta
 
 
+@renamed_args(renamed={"mask": "object_mask"})
 def capture(controller, camera, out, lights, *, current_mA=350, leds=None, dark=True,
-            mask=None, normals=None, meta=None, progress=True, overwrite=False):
+            object_mask=None, normals=None, meta=None, progress=True, overwrite=False):
     """Capture one PS image set into the folder ``out`` (atomically).
 
     Parameters
@@ -129,7 +133,8 @@ def capture(controller, camera, out, lights, *, current_mA=350, leds=None, dark=
     current_mA : int
     leds : sequence of int, optional
         Controller LED index of each light (default 0..k-1).
-    mask, normals : optional arrays stored with the capture (simulator ground truth).
+    object_mask, normals : (H, W) bool, (H, W, 3) float, optional
+        Stored with the capture (simulator ground truth).
     meta : dict, optional
         Extra metadata for psbench.json.
     progress : bool
@@ -153,7 +158,7 @@ def capture(controller, camera, out, lights, *, current_mA=350, leds=None, dark=
             names = capture_sequence(controller, camera, tmp, leds=leds, current_mA=current_mA,
                                      dark=dark, progress=prog)
             md = _base_meta(controller, camera, lay, leds, current_mA, fw, n_leds, meta)
-            _write_layout(tmp, names, lay, md, mask, normals)
+            _write_layout(tmp, names, lay, md, object_mask, normals)
         ok = True
     finally:
         err = controller.safe_off()
@@ -221,8 +226,8 @@ def capture_all(rig, controller, out, *, device, current_mA=None, progress=True,
                     msk = None
                     if t == "sphere":
                         from ..surfaces import make_surface
-                        msk = make_surface("semisphere", cfg.size).mask
-                    _write_layout(d, tn, lay, tm, mask=msk)
+                        msk = make_surface("semisphere", size=cfg.size).object_mask
+                    _write_layout(d, tn, lay, tm, object_mask=msk)
                 else:
                     controller.off()
                     write_image(d / "001.png", cam.grab())
@@ -235,11 +240,11 @@ def capture_all(rig, controller, out, *, device, current_mA=None, progress=True,
                         tm["radiance"] = rig.chart_radiance.tolist()
                     else:
                         tm["pitch_mm"] = cfg.grid_mm
-                    (d / "psbench.json").write_text(json.dumps(tm, indent=1, default=_json_default))
+                    (d / "psbench.json").write_text(json.dumps(tm, indent=1, default=json_default))
                 sub.append(t)
             md["calibration_raw"] = sub
             cam.target = "object"
-            _write_layout(tmp, names, lay, md, rig.surface.mask, rig.surface.normals)
+            _write_layout(tmp, names, lay, md, rig.surface.object_mask, rig.surface.normals)
         ok = True
     finally:
         err = controller.safe_off()

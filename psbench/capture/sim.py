@@ -303,7 +303,7 @@ class SimRig:
         self._cache = {}
         self.frames = 0
         from ..surfaces import make_surface
-        self.surface = make_surface(cfg.surface, s)
+        self.surface = make_surface(cfg.surface, size=s)
         # chart: 9 patches on a circle (equal vignette), radiances 0.1 .. 0.9
         self.chart_radiance = np.linspace(0.1, 0.9, 9)
         rad = 0.3 * s
@@ -332,7 +332,7 @@ class SimRig:
             out = render(plane, self.directions, model="lambert", rho_d=cfg.albedo,
                          light_positions=self.positions, falloff=True, shadows=False).images
         elif target == "sphere":
-            sph = make_surface("semisphere", s)
+            sph = make_surface("semisphere", size=s)
             out = render(sph, self.directions, model="phong", phong_m=cfg.sphere_m, rho_d=0.03,
                          rho_s=1.0, light_positions=self.positions, falloff=True,
                          shadows=False).images

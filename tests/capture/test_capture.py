@@ -126,7 +126,7 @@ def test_capture_folder_reads_back(rig, tmp_path):
     from psbench.io import read_dataset
     with SimController(rig.k) as dev, LedController(dev.port, timeout=2.0) as ctl:
         capture(ctl, SimCamera(rig, dev), tmp_path / "cap", rig.nominal, progress=False,
-                mask=rig.surface.mask, normals=rig.surface.normals)
+                object_mask=rig.surface.object_mask, normals=rig.surface.normals)
     ds = read_dataset(tmp_path / "cap")
     assert ds.images.shape == (8, SIZE, SIZE) and ds.meta["bits"] == 8 and ds.meta["raw"]
     assert ds.lights.n_rings == 2 and not ds.meta["calibrated"]
@@ -170,8 +170,8 @@ def test_capture_calibrate_solve_matches_ideal(rig, tmp_path):
     ne = {}
     for name, imgs, lights in (("cal", ds.images, ds.lights), ("raw", raw.images, raw.lights),
                                ("ideal", ideal.images, ideal.lights)):
-        res = solve(imgs, lights, mask="None", object_mask=ds.mask)
-        ne[name] = _ne(res.normals, ds.normals, ds.mask)
+        res = solve(imgs, lights, mask="None", object_mask=ds.object_mask)
+        ne[name] = _ne(res.normals, ds.normals, ds.object_mask)
     print("NE (deg):", {k: round(v, 3) for k, v in ne.items()})
     assert abs(ne["cal"] - ne["ideal"]) < 1.0, ne
     assert ne["raw"] > ne["ideal"] + 2.0, ne  # the imperfections matter
@@ -193,7 +193,7 @@ def test_harness_runs_on_calibrated_capture(rig, tmp_path):
     ideal = rig.ideal()
     from psbench.solve import solve
     ne_ideal = _ne(solve(ideal.images, ideal.lights, mask="None").normals, rig.surface.normals,
-                   rig.surface.mask)
+                   rig.surface.object_mask)
     assert abs(row["ne_mean"] - ne_ideal) < 1.0
 
 

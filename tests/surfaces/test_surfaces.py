@@ -11,7 +11,8 @@ from psbench.surfaces import SOMBRERO_LAMBDA, normals_from_height, pixel_grid
 def test_every_surface_is_well_formed_and_deterministic(name, size):
     s = ps.make_surface(name, size=size)
     assert s.height.shape == (size, size) and s.height.dtype == np.float32
-    assert s.mask.shape == (size, size) and s.mask.dtype == bool and s.mask.any()
+    assert s.object_mask.shape == (size, size) and s.object_mask.dtype == bool
+    assert s.object_mask.any()
     assert s.normals.shape == (size, size, 3) and s.normals.dtype == np.float32
     assert np.isfinite(s.height).all() and np.isfinite(s.normals).all()
     np.testing.assert_allclose(np.linalg.norm(s.normals, axis=-1), 1.0, atol=1e-5)
@@ -25,7 +26,7 @@ def test_analytic_normals_agree_with_height_gradient(name):
     s = ps.make_surface(name, size=256)
     numeric = normals_from_height(s.height.astype(np.float64))
     # compare on the interior, away from silhouettes where the slope is discontinuous
-    ok = cv2.erode(s.mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    ok = cv2.erode(s.object_mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     steep = cv2.dilate((s.zenith >= 60).astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     ok &= ~steep
     cosang = np.clip((numeric[ok] * s.normals[ok]).sum(-1), -1, 1)
@@ -37,8 +38,8 @@ def test_sombrero_zeniths_follow_the_peaks():
     assert abs(z[1] - 66.0) < 0.5
     assert z[0] < z[1] < z[2]
     assert SOMBRERO_LAMBDA > 0
-    assert np.array_equal(ps.make_surface("sombrero", 64).height,
-                          ps.make_surface("sombrero2", 64).height)
+    assert np.array_equal(ps.make_surface("sombrero", size=64).height,
+                          ps.make_surface("sombrero2", size=64).height)
 
 
 def test_semisphere_is_a_hemisphere():
@@ -47,15 +48,15 @@ def test_semisphere_is_a_hemisphere():
     x, y = np.broadcast_arrays(*pixel_grid((size, size)))
     r2 = x ** 2 + y ** 2
     R = 0.45 * size
-    inside = s.mask & (r2 < (0.95 * R) ** 2)
+    inside = s.object_mask & (r2 < (0.95 * R) ** 2)
     np.testing.assert_allclose(s.height[inside], np.sqrt(R ** 2 - r2[inside]), rtol=1e-4, atol=1e-3)
 
 
 @pytest.mark.parametrize("name", ["mozart", "penny", "spheres"])
 def test_bust_coin_and_spheres_have_steep_sides_that_cast_shadows(name):
     s = ps.make_surface(name, size=128)
-    assert (s.zenith[s.mask] > 60).any()
-    shadow = ps.shadow_map(s.height, ps.layout("60x4"), mask=s.mask)
+    assert (s.zenith[s.object_mask] > 60).any()
+    shadow = ps.shadow_map(s.height, ps.layout("60x4"), object_mask=s.object_mask)
     assert shadow.any(axis=0).mean() > 0.005
 
 
@@ -76,7 +77,7 @@ def test_surface_from_height_plane_and_paraboloid():
 
 
 def test_surface_from_file_npy_and_png(tmp_path):
-    h = ps.make_surface("semisphere", 64).height
+    h = ps.make_surface("semisphere", size=64).height
     np.save(tmp_path / "h.npy", h)
     s = ps.surface_from_file(tmp_path / "h.npy")
     np.testing.assert_allclose(s.height, h, atol=1e-6)
@@ -92,7 +93,8 @@ def test_surface_from_file_npy_and_png(tmp_path):
     (lambda: ps.make_surface("semisphere", size=4), "size"),
     (lambda: ps.surface_from_height(np.full((8, 8), np.nan)), "NaN"),
     (lambda: ps.surface_from_height(np.zeros(8)), "shape"),
-    (lambda: ps.surface_from_height(np.zeros((8, 8)), mask=np.ones((4, 4), bool)), "mask"),
+    (lambda: ps.surface_from_height(np.zeros((8, 8)), object_mask=np.ones((4, 4), bool)),
+     "object_mask"),
     (lambda: ps.surface_from_file("heights.txt"), ".npy or .png"),
     (lambda: ps.surface_from_file("missing.npy"), "does not exist"),
 ])
@@ -114,5 +116,5 @@ def test_preview_command_writes_pngs(tmp_path):
 @pytest.mark.parametrize("name", ["mozart", "penny", "spheres"])
 def test_background_plane_is_at_height_zero(name):
     s = ps.make_surface(name, size=96)
-    assert s.mask[0, 0] and abs(float(s.height[0, 0])) < 1e-4
+    assert s.object_mask[0, 0] and abs(float(s.height[0, 0])) < 1e-4
     assert np.allclose(s.normals[0, 0], (0, 0, 1))

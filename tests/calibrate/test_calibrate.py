@@ -9,6 +9,7 @@ import pytest
 
 from psbench import PsbenchError
 from psbench import calibrate as cal
+from psbench.calibrate._fit import _norm_coords
 from psbench.capture.sim import RigConfig, SimRig
 from psbench.solve.kernel import ls, split
 
@@ -39,7 +40,7 @@ def test_response_linearises():
     rig = SimRig(RigConfig.ideal(size=SIZE, gamma=2.2, bits=16))
     chart = frames(rig, "chart", leds=[np.zeros(rig.k)])[0]
     m = cal.chart_means(chart, rig.chart_boxes)
-    c = cal.fit_response(m, rig.chart_radiance, 6)
+    c = cal.fit_response(m, rig.chart_radiance, degree=6)
     # held-out ramp of exposures through the camera model
     e = np.linspace(0.03, 0.95, 60)
     out = rig.response(e)
@@ -59,7 +60,7 @@ def test_response_degree_lowered_when_not_monotone():
     m = np.array([0.1, 0.2, 0.3, 0.4, 0.42, 0.6])
     r = np.array([0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
     with pytest.warns(UserWarning, match="not monotone"):
-        c = cal.fit_response(m, r, 6)
+        c = cal.fit_response(m, r, degree=6)
     assert c.size < 7
     with pytest.raises(PsbenchError, match="order"):
         cal.fit_response([0.5, 0.4, 0.3], [0.1, 0.2, 0.3])
@@ -69,7 +70,7 @@ def test_response_degree_lowered_when_not_monotone():
 def test_flat_field_removes_vignette():
     rig = SimRig(RigConfig.ideal(size=SIZE, vignette=0.3, bits=16))
     white = frames(rig, "white")
-    flat = cal.flat_field(white, 4)
+    flat = cal.flat_field(white, degree=4)
     held_out = frames(SimRig(RigConfig.ideal(size=SIZE, vignette=0.3, bits=16, seed=3)), "white")
 
     def nonuni(img):
@@ -84,9 +85,9 @@ def test_flat_field_removes_vignette():
 
 def test_polyfit2d_recovers_polynomial():
     H, W = 40, 50
-    u, v = cal._norm_coords((H, W))
+    u, v = _norm_coords((H, W))
     img = 1 + 0.3 * u[None, :] - 0.2 * v[:, None] ** 2 + 0.1 * u[None, :] * v[:, None]
-    c = cal.polyfit2d(img, 2)
+    c = cal.polyfit2d(img, degree=2)
     assert np.allclose(cal.polyval2d(c, (H, W), 2), img, atol=1e-10)
 
 
@@ -114,9 +115,9 @@ def test_hot_pixels_removed():
 def test_sphere_light_directions():
     rig = SimRig(RigConfig.ideal(size=128, misplace_deg=3.0, sphere_m=400.0))
     from psbench.surfaces import make_surface
-    mask = make_surface("semisphere", 128).mask
+    mask = make_surface("semisphere", size=128).object_mask
     sph = frames(rig, "sphere")
-    d, n, pts = cal.light_directions_from_sphere(sph, mask)
+    d, n, pts = cal.light_directions_from_sphere(sph, object_mask=mask)
     err = _ang(d, rig.directions)
     nominal = _ang(rig.nominal.directions, rig.directions)
     print(f"light direction error: nominal {nominal.mean():.2f} deg -> sphere {err.mean():.3f} deg "
@@ -127,8 +128,8 @@ def test_sphere_light_directions():
 def test_sphere_light_positions_near():
     rig = SimRig(RigConfig.ideal(size=128, distance=5 * 128, misplace_deg=2.0))
     from psbench.surfaces import make_surface
-    mask = make_surface("semisphere", 128).mask
-    d, n, _ = cal.light_directions_from_sphere(frames(rig, "sphere"), mask)
+    mask = make_surface("semisphere", size=128).object_mask
+    d, n, _ = cal.light_directions_from_sphere(frames(rig, "sphere"), object_mask=mask)
     cx, cy, R = cal.sphere_geometry(mask)
     P = cal.light_positions(d, n, rig.distance, center=(cx, cy), radius=R)
     err = np.linalg.norm(P - rig.positions, axis=1) / rig.distance
@@ -160,7 +161,7 @@ def test_near_light_correction_improves_ne():
     imgs = frames(rig, "object").astype(np.float32) / rig.config.exposure
     from psbench.lights import layout
     lay = layout(rig.directions)
-    m = rig.surface.mask
+    m = rig.surface.object_mask
     ne_raw = _ne(split(ls(imgs, lay.S))[0], rig.surface.normals, m)
     near = cal.near_light_fields(imgs.shape[1:], rig.positions)
     ne_cor = _ne(split(ls(imgs / near, lay.S))[0], rig.surface.normals, m)

@@ -80,19 +80,20 @@ def test_dataset_roundtrip_exact(tmp_path):
     rng = np.random.default_rng(1)
     nrm = rng.normal(size=imgs.shape[1:] + (3,)).astype(np.float32)
     nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
-    io.write_dataset(tmp_path / "ds", imgs, lay, mask=mask, normals=nrm, meta={"note": "x"})
+    io.write_dataset(tmp_path / "ds", imgs, lay, object_mask=mask, normals=nrm,
+                     meta={"note": "x"})
     ds = io.read_dataset(tmp_path / "ds")
     assert np.array_equal(ds.images, imgs)  # exact on 16-bit-quantized data
     assert np.array_equal(io.read_image(tmp_path / "ds" / "001.png", raw=True), q[0])
     assert np.allclose(ds.lights.directions, lay.directions, atol=1e-12)
     assert np.array_equal(ds.lights.ring, lay.ring)
     assert ds.lights.n_rings == 2
-    assert np.array_equal(ds.mask, mask)
+    assert np.array_equal(ds.object_mask, mask)
     assert np.array_equal(ds.normals, nrm)
     assert ds.names == [f"{i:03d}.png" for i in range(1, 7)]
     assert ds.meta["note"] == "x" and ds.meta["calibrated"] is False
     # a second write of what was read gives identical files
-    io.write_dataset(tmp_path / "ds2", ds.images, ds.lights, mask=ds.mask, normals=ds.normals,
+    io.write_dataset(tmp_path / "ds2", ds.images, ds.lights, object_mask=ds.object_mask, normals=ds.normals,
                      meta={"note": "x"})
     for f in ["001.png", "006.png", "light_directions.txt", "mask.png", "normals.npy"]:
         assert (tmp_path / "ds" / f).read_bytes() == (tmp_path / "ds2" / f).read_bytes()
@@ -135,7 +136,7 @@ def test_light_intensities_divide(tmp_path):
 def _folder(tmp_path, k=4):
     imgs, _ = _quantized(k=k)
     p = tmp_path / "ds"
-    io.write_dataset(p, imgs, layout("45x4"), mask=np.ones(imgs.shape[1:], bool))
+    io.write_dataset(p, imgs, layout("45x4"), object_mask=np.ones(imgs.shape[1:], bool))
     return p
 
 
@@ -214,13 +215,13 @@ class _Res:
 
 def test_write_outputs(tmp_path):
     from psbench.surfaces import make_surface
-    s = make_surface("semisphere", 24)
+    s = make_surface("semisphere", size=24)
     r = _Res()
-    r.normals, r.albedo = s.normals, np.where(s.mask, 0.5, 0).astype(np.float32)
+    r.normals, r.albedo = s.normals, np.where(s.object_mask, 0.5, 0).astype(np.float32)
     r.height = s.height
     r.valid = np.ones((3, 24, 24), bool)
     r.weights = np.full((3, 24, 24), 0.5, np.float32)
-    files = io.write_outputs(tmp_path / "out", r, mask=s.mask)
+    files = io.write_outputs(tmp_path / "out", r, object_mask=s.object_mask)
     for f in ("normals.npy", "normals.png", "albedo.npy", "albedo.png", "height.npy", "mesh.ply",
               "valid.npy", "valid/001.png", "weights/003.png"):
         assert (tmp_path / "out" / f).is_file(), f
@@ -235,7 +236,7 @@ def test_ply_grid_triangulation(tmp_path):
     h = np.arange(12, dtype=float).reshape(3, 4)
     m = np.ones((3, 4), bool)
     m[0, 0] = False
-    nv, nf = io.write_ply(tmp_path / "m.ply", h, m, binary=False)
+    nv, nf = io.write_ply(tmp_path / "m.ply", h, object_mask=m, binary=False)
     assert nv == 11 and nf == 2 * (2 * 3 - 1)
     txt = (tmp_path / "m.ply").read_text().splitlines()
     end = txt.index("end_header")
@@ -246,7 +247,7 @@ def test_ply_grid_triangulation(tmp_path):
     a, b, c = (verts[faces[:, j + 1]] for j in range(3))
     nz = np.cross(b - a, c - a)[:, 2]
     assert (nz > 0).all()  # counter-clockwise seen from +z
-    nv2, nf2 = io.write_ply(tmp_path / "b.ply", h, m, binary=True)
+    nv2, nf2 = io.write_ply(tmp_path / "b.ply", h, object_mask=m, binary=True)
     data = (tmp_path / "b.ply").read_bytes()
     body = data[data.index(b"end_header\n") + 11:]
     assert len(body) == nv2 * 12 + nf2 * 13
@@ -274,7 +275,7 @@ def test_normal_gt_mat_and_colour_dataset(tmp_path):
     # each channel divided by its own intensity, then BT.601 luma
     want = ((rgb / 65535.0) / inten[:, None, None, :]) @ io.LUMA
     assert np.allclose(ds.images, want, rtol=1e-5)
-    assert ds.normals.shape == (H, W, 3) and ds.mask.all()
+    assert ds.normals.shape == (H, W, 3) and ds.object_mask.all()
     assert ds.meta["format"] == "diligent"
     sio.savemat(p / "Normal_gt.mat", {"N": gt})
     with pytest.raises(PsbenchError, match="no key 'Normal_gt'"):
@@ -285,14 +286,14 @@ def test_write_outputs_from_solve_and_wps(tmp_path):
     from psbench.render import render
     from psbench.solve import solve
     from psbench.surfaces import make_surface
-    s = make_surface("spheres", 32)
+    s = make_surface("spheres", size=32)
     lay = layout("30x4+60x4")
     sc = render(s, lay, model="lambert")
-    res = solve(sc.images, lay, mask="Th", object_mask=s.mask, want_height=True)
-    io.write_outputs(tmp_path / "ps", res, mask=s.mask)
+    res = solve(sc.images, lay, mask="Th", object_mask=s.object_mask, want_height=True)
+    io.write_outputs(tmp_path / "ps", res, object_mask=s.object_mask)
     assert np.array_equal(np.load(tmp_path / "ps" / "normals.npy"), res.normals)
     assert len(list((tmp_path / "ps" / "valid").glob("*.png"))) == 8
-    w = solve(sc.images, lay, method="wps", object_mask=s.mask)
-    io.write_outputs(tmp_path / "wps", w, mask=s.mask)
+    w = solve(sc.images, lay, method="wps", object_mask=s.object_mask)
+    io.write_outputs(tmp_path / "wps", w, object_mask=s.object_mask)
     assert len(list((tmp_path / "wps" / "weights").glob("*.png"))) == 2  # one per ring
     assert (tmp_path / "wps" / "mesh.ply").is_file()  # height integrated when absent
