@@ -184,6 +184,24 @@ def _methods_block() -> list[str]:
     return out
 
 
+def _masks_block() -> list[str]:
+    """Masks by stage of Fig. 3.1 (image, subset, normal), each with its help."""
+    from .. import registry
+
+    title = "masks (mask=EXPR: names joined by '-', e.g. Th-Hi-Re-Sh; None: no mask)"
+    specs = registry.masks()
+    if not specs:
+        return _choice_block(title, C.masks())
+    order = {"image": 0, "subset": 1, "normal": 2}
+    names = sorted(specs, key=lambda n: (order.get(specs[n].stage, 3), n.lower()))
+    w = max(len(n) for n in names) + 2
+    out = [f"{title}:"]
+    for n in names:
+        m = specs[n]
+        out.append(_wrap(f"{n:<{w}}{m.stage + ':':<8}{m.help}", " " * (w + 10), "  "))
+    return out
+
+
 def _choice_block(title, names) -> list[str]:
     if not names:
         return [f"{title}: (none registered)"]
@@ -204,8 +222,7 @@ def help_text() -> str:
              *_param_lines(S.PARAMS), "",
              "harness settings (how runs execute and where rows go; not part of a run's "
              "identity):", *_param_lines(S.SETTINGS), "", FIGURES]
-    parts += _choice_block("masks (mask=EXPR: names joined by '-', e.g. Th-Hi-Re-Sh; None: "
-                           "no mask)", C.masks())
+    parts += _masks_block()
     parts += [""] + _methods_block() + [""]
     parts += _choice_block("surfaces (surface=NAME, or a .npy / 16-bit .png height map)",
                            C.surfaces())
