@@ -1,5 +1,6 @@
-"""Benchmark harness: Hydra app (``psbench``), runs, Parquet results store, experiment
-grids and sharded execution, ``psbench-results`` maintenance CLI.
+"""Benchmark harness: Hydra app (``psbench``), the run spec (every run parameter declared
+once, :mod:`psbench.harness.spec`), runs, Parquet results store, experiment grids and
+sharded execution, ``psbench-results`` maintenance CLI.
 
 ``read_store`` is the reader used by reports::
 

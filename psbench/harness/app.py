@@ -7,8 +7,12 @@
     psbench -m mask=Th,xNL,RA zenith=30,45,60  # sweep (joblib launcher, parallel)
     psbench data=path/to/folder mask=Th        # a DiLiGenT-layout folder
     psbench +experiment=table5_3 scale=ci      # an experiment grid, in-process chunks
+    psbench mask=Th-Hi-Re-Sh options.max_iter=5    # method options
+    psbench --help                             # every parameter, choice and figure
 
-Configs ship inside the package (``psbench.conf``). Rows go to
+Run parameters and harness settings come from the run spec
+(:mod:`psbench.harness.spec`), which generates Hydra's defaults; Hydra's own settings
+ship inside the package (``psbench/conf``, loaded as ``pkg://psbench.conf``). Rows go to
 ``<results_dir>/runs/<sweep>/<run_id>.parquet`` (``results_dir`` defaults to
 ``$PSBENCH_RESULTS`` or ``results`` in the current directory); Hydra's own output goes
 to ``<results_dir>/hydra/`` and nothing else is written to the current directory.
@@ -23,31 +27,18 @@ import sys
 from pathlib import Path
 
 from .._checks import PsbenchError
+from . import spec as S
 
 __all__ = ["main", "task"]
 
 _EXIT = {"code": 0}
-# top-level keys of conf/config.yaml: "+key=value" is accepted for these too
-_KEYS = ("kind", "surface", "size", "zenith", "count", "lights", "model", "shadows", "noise",
-         "quantize", "mask", "weighted", "method", "weight", "binary", "thresholds",
-         "th_scope", "seed", "data", "analysis", "args", "extras", "results_dir", "sweep",
-         "rerun", "retry_failed", "scale", "jobs", "launcher", "shards", "submitit")
-
-
-def _config_path() -> str:
-    """``pkg://psbench.conf`` when the package ships its configs, else the source tree's
-    ``conf/`` (an editable install made before the configs were packaged)."""
-    import importlib.util
-
-    try:
-        if importlib.util.find_spec("psbench.conf") is not None:
-            return "pkg://psbench.conf"
-    except (ImportError, ValueError):
-        pass
-    here = Path(__file__).resolve().parents[2] / "conf"
-    if (here / "config.yaml").is_file():
-        return str(here)
-    return "pkg://psbench.conf"
+# top-level config keys (from the run spec): "+key=value" is accepted for these too
+# (not for experiment: "+experiment=NAME" selects a config group)
+_KEYS = tuple(p.name for p in S.PARAMS + S.SETTINGS if p.name != "experiment")
+# mapping parameters whose entries are set as "name.key=value" (Hydra needs "++")
+_MAPPINGS = tuple(p.name for p in S.PARAMS if p.type == "mapping")
+#: the one place Hydra's configs are loaded from
+CONFIG_PATH = "pkg://psbench.conf"
 
 
 def _fix_argv(argv):
@@ -63,6 +54,18 @@ def _fix_argv(argv):
             key = a[1:].split("=", 1)[0].split(".", 1)[0]
             if key in _KEYS:
                 a = "+" + a
+        out.append(a)
+    return out
+
+
+def _entries(argv):
+    """``options.max_iter=5`` -> ``++options.max_iter=5``: entries of mapping parameters
+    need no ``+`` on the command line."""
+    out = []
+    for a in argv:
+        key = a.split("=", 1)[0]
+        if "=" in a and "." in key and key.split(".", 1)[0] in _MAPPINGS:
+            a = "++" + a
         out.append(a)
     return out
 
@@ -100,11 +103,8 @@ def _overridden(*keys) -> bool:
 def _base_params(cfg) -> dict:
     from omegaconf import OmegaConf
 
-    from .run import PARAMS
-
     c = OmegaConf.to_container(cfg, resolve=True)
-    base = {k: c.get(k) for k in PARAMS}
-    base["zenith"], base["count"] = c.get("zenith"), c.get("count")
+    base = {k: c.get(k) for k in S.param_names(aliases=True)}
     if c.get("data") is not None and not _overridden("lights", "zenith", "count"):
         base.pop("lights")           # a data folder uses all its lights by default
         base.pop("zenith")
@@ -129,7 +129,8 @@ def task(cfg):
 def _task(cfg):
     from omegaconf import OmegaConf
 
-    from .run import execute, format_row, normalize, run_id, validate
+    from .params import normalize, run_id, validate
+    from .run import execute, format_row
     from .store import read_run, stored_status, write_row
 
     root = Path(str(cfg.results_dir)).expanduser()
@@ -138,12 +139,13 @@ def _task(cfg):
     if cfg.get("experiment"):
         return _experiment(cfg, root)
     multi = _multirun()
+    st = S.coerce_settings({k: cfg.get(k) for k in ("sweep", "rerun", "retry_failed")})
     params = normalize(_base_params(cfg), base_dir=_cwd())
     validate(params)
-    sweep = str(cfg.sweep)
+    sweep = st["sweep"]
     rid = run_id(params)
-    stored = stored_status(root, sweep, [rid]).get(rid) if not cfg.rerun else None
-    skip = stored == "ok" or (multi and stored == "failed" and not cfg.retry_failed)
+    stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
+    skip = stored == "ok" or (multi and stored == "failed" and not st["retry_failed"])
     if skip:
         row = read_run(root, sweep, rid)
         line = format_row(row) if row is not None else rid
@@ -198,15 +200,31 @@ def _experiment(cfg, root):
     return {k: v for k, v in out.items() if k != "results"}
 
 
-def main(argv=None):
-    """Console entry point ``psbench``."""
+def main(args=None):
+    """Console entry point ``psbench``.
+
+    Parameters
+    ----------
+    args : list of str, optional
+        Command-line arguments without the program name (default ``sys.argv[1:]``).
+    """
     import hydra
 
-    if argv is not None:
-        sys.argv = [sys.argv[0]] + list(argv)
-    sys.argv = [sys.argv[0]] + _fix_argv(sys.argv[1:])
+    args = list(sys.argv[1:] if args is None else args)
+    if "--version" in args:
+        import psbench
+
+        print(f"psbench {psbench.__version__}")
+        return
+    if "--help" in args or "-h" in args:
+        from .help import help_text
+
+        sys.stdout.write(help_text())
+        return
+    sys.argv = [sys.argv[0]] + _entries(_fix_argv(args))
     _EXIT["code"] = 0
-    deco = hydra.main(version_base="1.3", config_path=_config_path(), config_name="config")
+    S.register_hydra()
+    deco = hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name="config")
     deco(task)()
     if _EXIT["code"]:
         sys.exit(_EXIT["code"])

@@ -110,7 +110,7 @@ def _verify(args):
     return 1 if problems else 0
 
 
-def main(argv=None):
+def main(args=None):
     """Console entry point ``psbench-results``."""
     ap = argparse.ArgumentParser(prog="psbench-results", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -123,7 +123,7 @@ def main(argv=None):
         if name == "summary":
             p.add_argument("--experiment", default=None)
             p.add_argument("--by", default=None, help="comma-separated columns (default sweep,mask)")
-    args = ap.parse_args(argv)
+    args = ap.parse_args(args)
     fn = {"ls": _ls, "summary": _summary, "compact": _compact, "verify": _verify}[args.cmd]
     try:
         return fn(args)

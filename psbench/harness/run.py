@@ -1,11 +1,11 @@
 """One run: parameters -> scene (render or read) -> solve -> metrics -> results row.
 
-Run parameters (:data:`PARAMS`, defaults below) fully determine a run; their
-normalized json hashes to the ``run_id``. Kinds:
+Run parameters are declared in the run spec (:mod:`psbench.harness.spec`) and
+normalized by :func:`normalize`; their normalized json hashes to the ``run_id``. Kinds:
 
-- ``solve`` (default): render ``surface`` (a name of :data:`psbench.SURFACES` or a
-  ``.npy`` / 16-bit ``.png`` height map) under ``lights`` -- or read the folder
-  ``data`` (DiLiGenT layout) -- then solve with ``mask``/``method``/... and score
+- ``solve`` (default): render ``surface`` (a registered surface name or a ``.npy`` /
+  16-bit ``.png`` height map) under ``lights`` -- or read the folder ``data``
+  (DiLiGenT layout) -- then solve with ``mask``/``method``/``options``/... and score
   NE (when true normals exist), IE and QF (synthetic only). ``extras: [ne_by_zenith]``
   adds the NE-vs-surface-zenith curve (json) to the row.
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
@@ -19,14 +19,11 @@ Runs sharing a scene (:func:`scene_key`) reuse one rendered scene in
 """
 from __future__ import annotations
 
-import hashlib
 import inspect
 import json
 import math
 import os
-import platform
 import socket
-import subprocess
 import sys
 import time
 import traceback
@@ -36,257 +33,27 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import PsbenchError
+from . import spec as S
+from .params import PARAMS, normalize, run_id, scene_key, validate
+from .params import plain as _plain  # noqa: F401 - used by grid
 
 __all__ = ["PARAMS", "KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
-           "execute", "run_chunk", "format_row", "provenance"]
+           "execute", "run_chunk", "format_row", "provenance", "select_lights"]
 
-PARAMS = dict(kind="solve", surface="sombrero2", data=None, lights="45x8", model="ts",
-              shadows=True, noise=0.05, quantize=None, size=512, mask="Th", weighted=False,
-              method="ps", weight=None, binary=False, thresholds={}, th_scope="image",
-              seed=0, analysis=None, args={}, extras=[])
-KINDS = ("solve", "cond", "analysis", "noop")
-EXTRAS = ("ne_by_zenith",)
-_SCENE = ("kind", "surface", "data", "lights", "model", "shadows", "noise", "quantize",
-          "size", "seed")
-_SYNTH_ONLY = ("surface", "lights", "model", "shadows", "noise", "quantize", "size")
-
-
-# ---------------------------------------------------------------------------- params
-def _plain(value):
-    """OmegaConf / numpy containers -> plain python."""
-    try:
-        from omegaconf import DictConfig, ListConfig, OmegaConf
-
-        if isinstance(value, (DictConfig, ListConfig)):
-            return OmegaConf.to_container(value, resolve=True)
-    except ImportError:  # pragma: no cover
-        pass
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-def _num(v):
-    """45.0 -> '45', 37.5 -> '37.5' (for light specs)."""
-    v = float(v)
-    return str(int(v)) if v.is_integer() else repr(v)
-
-
-def _is_path(s) -> bool:
-    s = str(s)
-    return s.lower().endswith((".npy", ".png")) or "/" in s or os.sep in s
-
-
-def _bool(v, name):
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, str) and v.lower() in ("true", "false"):
-        return v.lower() == "true"
-    if isinstance(v, (int, np.integer)) and v in (0, 1):
-        return bool(v)
-    raise PsbenchError(f"{name} must be true or false, got {v!r}")
-
-
-def _int(v, name, *, allow_none=False):
-    if v is None and allow_none:
-        return None
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise PsbenchError(f"{name} must be an integer, got {v!r}") from None
-    if isinstance(v, bool) or not f.is_integer():
-        raise PsbenchError(f"{name} must be an integer, got {v!r}")
-    return int(f)
-
-
-def _float(v, name):
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise PsbenchError(f"{name} must be a number, got {v!r}") from None
-    if isinstance(v, bool) or not math.isfinite(f):
-        raise PsbenchError(f"{name} must be a finite number, got {v!r}")
-    return f
-
-
-def normalize(params: dict, *, base_dir=None) -> dict:
-    """Complete and canonicalize run parameters (the run's identity).
-
-    Unknown keys are refused (listing the valid ones). ``zenith``/``count`` are
-    accepted and turned into ``lights = "<zenith>x<count>"`` when ``lights`` is not
-    given. Paths (``data``, file ``surface``) become absolute (relative to
-    ``base_dir`` or the CWD). Parameters that cannot affect the run are set to None
-    (e.g. render options of a ``data`` run), so they do not change the run_id.
-    """
-    p = {k: _plain(v) for k, v in dict(params).items()}
-    zen, cnt = p.pop("zenith", None), p.pop("count", None)
-    unknown = sorted(set(p) - set(PARAMS))
-    if unknown:
-        raise PsbenchError(f"unknown run parameter(s) {unknown}; valid: "
-                           f"{', '.join(list(PARAMS) + ['zenith', 'count'])}")
-    if p.get("lights") is None and zen is not None:
-        p["lights"] = f"{_num(zen)}x{_int(cnt if cnt is not None else 8, 'count')}"
-    explicit_lights = p.get("lights") is not None
-    out = {k: p.get(k, v) for k, v in PARAMS.items()}
-    out = {k: (json.loads(json.dumps(v)) if isinstance(v, (dict, list)) else v)
-           for k, v in out.items()}
-    base = Path(base_dir) if base_dir is not None else Path.cwd()
-
-    kind = str(out["kind"])
-    if kind not in KINDS:
-        raise PsbenchError(f"kind={kind!r} is not known; valid choices: {', '.join(KINDS)}")
-    out["kind"] = kind
-    if out["data"] is not None:
-        out["data"] = str((base / Path(str(out["data"])).expanduser()).resolve())
-        lights = str(out["lights"]).replace(" ", "") if explicit_lights else None
-        for k in _SYNTH_ONLY:
-            out[k] = None
-        out["lights"] = lights   # a layout selects the nearest of the folder's lights
-    else:
-        s = str(out["surface"])
-        out["surface"] = str((base / Path(s).expanduser()).resolve()) if _is_path(s) else s
-        out["lights"] = str(out["lights"]).replace(" ", "")
-        out["model"] = str(out["model"])
-        sh = out["shadows"]
-        if isinstance(sh, str) and sh.lower() in ("all", "self", "none"):
-            sh = {"all": True, "self": False, "none": "none"}[sh.lower()]
-        out["shadows"] = sh if sh == "none" else _bool(sh, "shadows")
-        out["noise"] = _float(out["noise"], "noise")
-        out["quantize"] = _int(out["quantize"], "quantize", allow_none=True)
-        out["size"] = None if _is_path(s) else _int(out["size"], "size")
-    out["mask"] = str(out["mask"])
-    out["weighted"] = _bool(out["weighted"], "weighted")
-    out["method"] = str(out["method"])
-    out["weight"] = None if out["weight"] is None else str(out["weight"])
-    out["binary"] = _bool(out["binary"], "binary")
-    out["th_scope"] = str(out["th_scope"])
-    out["seed"] = _int(out["seed"], "seed")
-    for k in ("thresholds", "args"):
-        v = out[k] or {}
-        if not isinstance(v, dict):
-            raise PsbenchError(f"{k} must be a mapping, got {v!r}")
-        out[k] = {str(a): v[a] for a in sorted(v)}
-    ex = out["extras"] or []
-    ex = [ex] if isinstance(ex, str) else list(ex)
-    for e in ex:
-        if e not in EXTRAS:
-            raise PsbenchError(f"extras entry {e!r} is not known; valid choices: {', '.join(EXTRAS)}")
-    out["extras"] = sorted(set(ex))
-    if kind == "cond":
-        out = {k: (v if k in ("kind", "lights") else PARAMS[k] if k in ("thresholds", "args", "extras")
-                   else None) for k, v in out.items()}
-        if out["lights"] is None:
-            raise PsbenchError("kind=cond needs lights")
-    if kind != "analysis":
-        out["analysis"] = None
-    elif not out["analysis"]:
-        raise PsbenchError("kind=analysis needs analysis=<function name in psbench.analysis>")
-    return out
-
-
-def run_id(params: dict) -> str:
-    """Stable 16-hex-digit hash of normalized parameters."""
-    blob = json.dumps(params, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def scene_key(params: dict) -> tuple:
-    """Runs with equal keys share one rendered (or read) scene."""
-    return tuple(json.dumps(params.get(k), sort_keys=True) for k in _SCENE)
-
-
-def validate(params: dict) -> None:
-    """Cheap checks of names before any work (raises PsbenchError listing choices)."""
-    from .. import lights as L
-
-    kind = params["kind"]
-    if kind == "noop":
-        return
-    if kind in ("solve", "analysis") and params["data"] is None:
-        from ..surfaces import SURFACES
-
-        s = params["surface"]
-        if os.path.isabs(s):
-            if not Path(s).is_file():
-                raise PsbenchError(f"surface file {s!r} does not exist")
-        elif s not in SURFACES:
-            raise PsbenchError(f"surface={s!r} is not known; valid choices: "
-                               f"{', '.join(SURFACES)} or a path to a .npy / 16-bit .png height map")
-        from ..render import MODELS
-
-        if params["model"] not in MODELS:
-            raise PsbenchError(f"model={params['model']!r} is not known; valid choices: "
-                               f"{', '.join(MODELS)}")
-    if kind in ("solve", "analysis") and params["data"] is not None:
-        if not Path(params["data"]).is_dir():
-            raise PsbenchError(f"data={params['data']!r} is not a folder")
-    if params["lights"] is not None:
-        L.layout(params["lights"])
-    if kind == "solve":
-        from ..solve.api import METHODS, parse_mask
-        from ..solve.masks import SCOPES
-
-        parse_mask(params["mask"])
-        if params["method"] not in METHODS:
-            raise PsbenchError(f"method={params['method']!r} is not known; valid choices: "
-                               f"{', '.join(METHODS)}")
-        if params["th_scope"] not in SCOPES:
-            raise PsbenchError(f"th_scope={params['th_scope']!r} is not known; valid choices: "
-                               f"{', '.join(SCOPES)}")
-    if kind == "analysis":
-        _analysis_fn(params["analysis"])
-
-
-def _analysis_fn(name):
-    from .. import analysis
-
-    fn = getattr(analysis, str(name), None)
-    if name.startswith("_") or not callable(fn):
-        names = sorted(n for n, v in vars(analysis).items() if callable(v) and not n.startswith("_")
-                       and getattr(v, "__module__", "") == analysis.__name__)
-        raise PsbenchError(f"analysis={name!r} is not a function of psbench.analysis; valid: "
-                           f"{', '.join(names)}")
-    return fn
+KINDS, EXTRAS = S.KINDS, S.EXTRAS
 
 
 # ---------------------------------------------------------------------------- provenance
 @lru_cache(maxsize=1)
-def _git():
-    pkg = Path(__file__).resolve().parents[1]
-    try:
-        top = subprocess.run(["git", "-C", str(pkg), "rev-parse", "--show-toplevel"],
-                             capture_output=True, text=True, timeout=10)
-        if top.returncode != 0:
-            return None, None
-        root = Path(top.stdout.strip())
-        if (root / "psbench" / "__init__.py").resolve() != (pkg / "__init__.py"):
-            return None, None
-        sha = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"],
-                             capture_output=True, text=True, timeout=10).stdout.strip() or None
-        st = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
-                             "--untracked-files=no"], capture_output=True, text=True, timeout=20)
-        return sha, (bool(st.stdout.strip()) if st.returncode == 0 else None)
-    except (OSError, subprocess.SubprocessError):
-        return None, None
-
-
-@lru_cache(maxsize=1)
 def provenance() -> dict:
     """Provenance columns shared by every row written by this process."""
-    from importlib import metadata
-
     import psbench
 
-    libs = {"python": platform.python_version()}
-    for name in ("numpy", "scipy", "opencv-python-headless", "pandas", "pyarrow", "hydra-core",
-                 "omegaconf", "joblib", "submitit"):
-        try:
-            libs[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            libs[name] = None
-    sha, dirty = _git()
+    from .._provenance import git_state, library_versions
+
+    sha, dirty = git_state()
     return dict(psbench_version=psbench.__version__, git_sha=sha, git_dirty=dirty,
-                libs=json.dumps(libs, sort_keys=True), host=socket.gethostname())
+                libs=json.dumps(library_versions(), sort_keys=True), host=socket.gethostname())
 
 
 # ---------------------------------------------------------------------------- memory
@@ -414,10 +181,15 @@ def _solve_metrics(p, sc):
     from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
     from ..solve import solve
 
+    kw = dict(p.get("options") or {})          # method options, checked by normalize()
+    if p["weight"] is not None:
+        kw["weight"] = p["weight"]
+    if p["binary"]:
+        kw["binary"] = True
     t0 = time.perf_counter()
     res = solve(sc.images, sc.lights, mask=p["mask"], method=p["method"], weighted=p["weighted"],
-                object_mask=sc.mask, thresholds=p["thresholds"] or None, weight=p["weight"],
-                binary=p["binary"], th_scope=p["th_scope"], seed=p["seed"])
+                object_mask=sc.mask, thresholds=p["thresholds"] or None,
+                th_scope=p["th_scope"], seed=p["seed"], **kw)
     t_solve = time.perf_counter() - t0
     row = dict(t_solve=t_solve, n_images=int(sc.images.shape[0]), size=int(sc.images.shape[1]))
     if sc.normals is not None:
@@ -427,9 +199,12 @@ def _solve_metrics(p, sc):
             row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, sc.mask))
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
-    w = getattr(res, "weights", None)
-    if p["method"] == "wps" and w is not None and np.ndim(w) == 3 \
-            and np.shape(w)[0] != np.shape(sc.images)[0]:
+    w = getattr(res, "ring_weights", None)
+    if w is None and p["method"] == "wps":     # ring weights in Result.weights (older solve)
+        w = getattr(res, "weights", None)
+        w = w if w is not None and np.ndim(w) == 3 and np.shape(w)[0] != sc.images.shape[0] \
+            else None
+    if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
                                                 mask=sc.mask, weights=w))
     dr = sc.dynamic_range()
@@ -441,11 +216,13 @@ def _solve_metrics(p, sc):
 
 
 def _analysis(p):
-    fn = _analysis_fn(p["analysis"])
+    from .. import analysis
+
+    fn = getattr(analysis, p["analysis"])       # validate() checked the name
     sig = inspect.signature(fn)
     has_kw = any(q.kind == q.VAR_KEYWORD for q in sig.parameters.values())
-    cand = {k: v for k, v in p.items()
-            if k not in ("kind", "analysis", "args", "extras") and v is not None}
+    cand = {k: v for k, v in p.items() if k not in ("kind", "analysis", "args", "extras")
+            and v is not None and not (k == "options" and not v)}
     derived = {}
     _layout_fields(p, derived)                 # zenith, count of a single ring
     cand.update({k: derived[k] for k in ("zenith", "count") if k in derived})
@@ -485,12 +262,7 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
         Extra json-able config to record (default: the parameters).
     """
     p = params
-    row = {k: v for k, v in p.items() if k not in ("zenith", "count")}
-    for k in ("thresholds", "args"):
-        row[k] = json.dumps(p[k], sort_keys=True) if p[k] else None
-    row["extras"] = json.dumps(p["extras"]) if p["extras"] else None
-    if row.get("shadows") == "none":     # bool column: no shadows at all (exact value in config)
-        row["shadows"] = False
+    row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
     row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
     row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
     _layout_fields(p, row)
@@ -596,6 +368,10 @@ def format_row(row) -> str:
             meth += f"/{r['weight']}"
         if r.get("binary"):
             meth += " binary"
+        opts = r.get("options")
+        opts = json.loads(opts) if isinstance(opts, str) else opts
+        if opts:
+            meth += " " + " ".join(f"{k}={v}" for k, v in sorted(opts.items()))
         parts.append(f"{m} {meth}")
     if r.get("status") == "failed":
         parts.append(f"FAILED: {r.get('error')}")

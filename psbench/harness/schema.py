@@ -4,8 +4,11 @@ One row per run. Column groups:
 
 - identity: ``run_id`` (hash of the resolved run parameters), ``sweep`` (the store
   folder: experiment name or ``sweep=`` name), ``experiment`` (or null), ``kind``;
-- parameters (:data:`PARAM_COLUMNS`); ``shadows`` is True for cast + self shadows, False
-  otherwise (render's "self" and "none"; the exact value is in ``config``);
+- parameters (:data:`PARAM_COLUMNS`: every run parameter of the run spec
+  :mod:`psbench.harness.spec`, then ``n_images``); ``shadows`` is True for cast + self
+  shadows, False otherwise (render's "self" and "none"; the exact value is in
+  ``config``); mappings and lists (``options``, ``thresholds``, ``args``, ``extras``)
+  are json text with sorted keys, null when empty;
 - metrics (:data:`METRIC_COLUMNS`), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
   ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
@@ -24,37 +27,17 @@ from __future__ import annotations
 
 import pyarrow as pa
 
+from .spec import columns
+
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "COLUMNS", "PARAM_COLUMNS", "METRIC_COLUMNS",
            "META_KEY", "empty_table", "row_table"]
 
 SCHEMA_VERSION = 1
 META_KEY = b"psbench.schema_version"
 
-_PARAMS = [
-    ("kind", pa.string()),
-    ("surface", pa.string()),
-    ("data", pa.string()),
-    ("lights", pa.string()),
-    ("zenith", pa.float64()),
-    ("count", pa.int64()),
-    ("n_images", pa.int64()),
-    ("model", pa.string()),
-    ("shadows", pa.bool_()),
-    ("noise", pa.float64()),
-    ("quantize", pa.int64()),
-    ("size", pa.int64()),
-    ("mask", pa.string()),
-    ("weighted", pa.bool_()),
-    ("method", pa.string()),
-    ("weight", pa.string()),
-    ("binary", pa.bool_()),
-    ("thresholds", pa.string()),
-    ("th_scope", pa.string()),
-    ("seed", pa.int64()),
-    ("analysis", pa.string()),
-    ("args", pa.string()),
-    ("extras", pa.string()),
-]
+# parameter columns come from the run spec (one declaration per parameter); n_images is
+# derived from the scene
+_PARAMS = [(n, pa.type_for_alias(t)) for n, t in columns()] + [("n_images", pa.int64())]
 _METRICS = [
     ("ne_mean", pa.float64()),
     ("ne_median", pa.float64()),

@@ -17,13 +17,13 @@ import time
 from pathlib import Path
 
 from .._checks import PsbenchError
+from .params import run_id, scene_key
 from .progress import Progress
-from .run import run_chunk, run_id, scene_key
+from .run import run_chunk
+from .spec import LAUNCHERS
 from .store import default_root, stored_status
 
 __all__ = ["LAUNCHERS", "plan", "make_chunks", "split_shards", "run_shard", "execute_runs"]
-
-LAUNCHERS = ("joblib", "submitit_local", "submitit_slurm", "submitit_debug")
 
 
 def plan(runs, *, root, sweep, rerun=False, retry_failed=False):

@@ -117,6 +117,21 @@ def test_clean_errors_exit_2(tmp_path):
     assert not (tmp_path / "results" / "runs").exists()       # config errors store nothing
     r = psbench("colour=red", cwd=tmp_path)                    # unknown key: Hydra's error
     assert r.returncode != 0 and "colour" in r.stderr
+    r = psbench("size=32", "options.bogus=1", cwd=tmp_path)    # checked by the options class
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "'bogus'" in r.stderr and "max_iter" in r.stderr
+    assert not (tmp_path / "results" / "runs").exists()
+    r = psbench("--version", cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.startswith("psbench ") and "Hydra" not in r.stdout
+
+
+def test_sweep_over_method_options(tmp_path):
+    args = ["-m", "size=32", "mask=Th-Hi", "options.max_iter=0,1", "hydra/launcher=basic"]
+    r = psbench(*args, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    df = _rows(tmp_path / "results")
+    assert sorted(df["options"]) == ['{"max_iter": 0}', '{"max_iter": 1}']
+    assert df["run_id"].is_unique
 
 
 def test_experiment_command_and_height_file(tmp_path):
@@ -155,17 +170,9 @@ def test_experiment_command_and_height_file(tmp_path):
     assert r.returncode == 0 and "8 of 8 runs skipped (stored)" in r.stderr
 
 
-def _data_dir():
-    env = os.environ.get("PSBENCH_DATA")
-    p = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    return p / "diligent" / "cat"
-
-
 @pytest.mark.realdata
-def test_data_folder_run(tmp_path):
-    d = _data_dir()
-    if not (d / "filenames.txt").is_file():
-        pytest.skip(f"DiLiGenT cat not found at {d} (set PSBENCH_DATA)")
+def test_data_folder_run(tmp_path, diligent):
+    d = diligent / "cat"
     r = psbench(f"data={d}", "mask=None", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     df = _rows(tmp_path / "results")

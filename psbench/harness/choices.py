@@ -1,0 +1,170 @@
+"""Where the valid values of run parameters come from, read when needed.
+
+Plug-in names (masks, methods, surfaces, experiments) come from :mod:`psbench.registry`;
+while a group is empty (a source tree whose built-ins are not registered yet), the
+names the code base still lists are used, without help text. Each source returns
+``{name: one-line help}``; the ``check_*`` functions validate one normalized value.
+"""
+from __future__ import annotations
+
+import importlib
+import re
+import os
+from pathlib import Path
+
+from .._checks import PsbenchError
+
+__all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights", "th_scopes",
+           "analyses", "choice_sources", "options_class", "check_surface", "check_data",
+           "check_lights", "check_mask", "check_analysis"]
+
+
+def _natural(name):
+    """fig4_10 after fig4_9."""
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
+
+
+def _legacy(ref):
+    """``module:attribute`` of the code base, or None when it no longer exists."""
+    mod, attr = ref.split(":")
+    try:
+        return getattr(importlib.import_module(mod), attr)
+    except (ImportError, AttributeError):
+        return None
+
+
+def _registry(group, legacy=None) -> dict:
+    """``{name: help}`` of a registry group; while the group is empty (built-ins not
+    registered), the names of the ``legacy`` tuple without help."""
+    from .. import registry
+
+    specs = getattr(registry, group)()
+    if specs:
+        out = {}
+        for name in sorted(specs, key=str.lower):
+            s = specs[name]
+            out[name] = getattr(s, "help", "") or (getattr(s, "TITLE", "") if group ==
+                                                   "experiments" else "")
+        return out
+    names = _legacy(legacy) if legacy else None
+    return {str(n): "" for n in (names or ())}
+
+
+def masks() -> dict:
+    """Mask names (``None``, plain least squares, is always valid and not listed)."""
+    return {n: h for n, h in _registry("masks", "psbench.solve.api:MASKS").items()
+            if n.lower() != "none"}
+
+
+def methods() -> dict:
+    return _registry("methods", "psbench.solve.api:METHODS")
+
+
+def surfaces() -> dict:
+    return _registry("surfaces", "psbench.surfaces:SURFACES")
+
+
+def experiments() -> dict:
+    out = _registry("experiments")
+    if not out:                       # experiment grids shipped as Hydra configs
+        from importlib import resources
+
+        try:
+            d = resources.files("psbench.conf") / "experiment"
+            names = [p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")]
+            out = {n: "" for n in sorted(names, key=_natural)}
+        except (ImportError, OSError):
+            out = {}
+    return out
+
+
+def models() -> dict:
+    return {m: "" for m in (_legacy("psbench.render:MODELS") or ())}
+
+
+def wps_weights() -> dict:
+    return {w: "" for w in (_legacy("psbench.solve.wps:WEIGHTS") or ())}
+
+
+def th_scopes() -> dict:
+    return {s: "" for s in (_legacy("psbench.solve.masks:SCOPES") or ())}
+
+
+def analyses() -> dict:
+    from .. import analysis
+
+    return {n: (v.__doc__ or "").strip().split("\n")[0] for n, v in sorted(vars(analysis).items())
+            if callable(v) and not n.startswith("_")
+            and getattr(v, "__module__", "") == analysis.__name__}
+
+
+def choice_sources() -> dict:
+    """What ``psbench --help`` lists: title -> ``{name: help}``."""
+    return {"masks": masks(), "methods": methods(), "surfaces": surfaces(),
+            "models": models(), "WPS weights": wps_weights(), "experiments": experiments()}
+
+
+def options_class(method):
+    """The options dataclass of ``method`` (registry); the mask engine's
+    :class:`psbench.solve.base.Options` while no method is registered."""
+    from .. import registry
+
+    if registry.methods():
+        return registry.get("methods", method).options
+    from ..solve.base import Options
+
+    legacy = _legacy("psbench.solve.api:METHODS")
+    if legacy and method not in legacy:
+        raise PsbenchError(f"method={method!r} is not known; valid choices: {', '.join(legacy)}")
+    return Options
+
+
+def check_surface(value, params):
+    if os.path.isabs(value):
+        if not Path(value).is_file():
+            raise PsbenchError(f"surface file {value!r} does not exist")
+        return
+    valid = surfaces()
+    if valid and value not in valid:
+        raise PsbenchError(f"surface={value!r} is not known; valid choices: {', '.join(valid)} "
+                           f"or a path to a .npy / 16-bit .png height map")
+
+
+def check_data(value, params):
+    if not Path(value).is_dir():
+        raise PsbenchError(f"data={value!r} is not a folder")
+
+
+def check_lights(value, params):
+    from ..lights import layout
+
+    layout(value)
+
+
+def check_mask(value, params):
+    from .. import registry
+
+    if not registry.masks():                 # built-ins not registered: today's parser
+        parse = _legacy("psbench.solve.api:parse_mask")
+        if parse is not None:
+            parse(value)
+            return
+    valid = masks()
+    low = {n.lower(): n for n in valid}
+    tokens = [t for t in value.replace("-", " ").replace("+", " ").split() if t.lower() != "none"]
+    for t in tokens:
+        if t.lower() not in low:
+            raise PsbenchError(f"mask={value!r}: unknown mask {t!r}; valid masks: None, "
+                               f"{', '.join(valid)} (combine with '-', e.g. 'Th-Hi-Re-Sh')")
+    specs = registry.masks()
+    fusing = [low[t.lower()] for t in tokens if getattr(specs.get(low[t.lower()]), "fuses", False)]
+    if fusing and len(set(t.lower() for t in tokens)) > 1:
+        raise PsbenchError(f"mask={value!r}: {fusing[0]} fuses its own subset solutions and "
+                           f"cannot be combined with other masks; use mask='{fusing[0]}'")
+
+
+def check_analysis(value, params):
+    valid = analyses()
+    if value not in valid:
+        raise PsbenchError(f"analysis={value!r} is not a function of psbench.analysis; valid: "
+                           f"{', '.join(valid)}")
