@@ -8,7 +8,6 @@ names the code base still lists are used, without help text. Each source returns
 from __future__ import annotations
 
 import importlib
-import re
 import os
 from pathlib import Path
 
@@ -17,11 +16,6 @@ from .._checks import PsbenchError
 __all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights", "th_scopes",
            "analyses", "choice_sources", "options_class", "check_surface", "check_data",
            "check_lights", "check_mask", "check_analysis"]
-
-
-def _natural(name):
-    """fig4_10 after fig4_9."""
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
 
 
 def _legacy(ref):
@@ -65,17 +59,7 @@ def surfaces() -> dict:
 
 
 def experiments() -> dict:
-    out = _registry("experiments")
-    if not out:                       # experiment grids shipped as Hydra configs
-        from importlib import resources
-
-        try:
-            d = resources.files("psbench.conf") / "experiment"
-            names = [p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")]
-            out = {n: "" for n in sorted(names, key=_natural)}
-        except (ImportError, OSError):
-            out = {}
-    return out
+    return _registry("experiments")
 
 
 def models() -> dict:
