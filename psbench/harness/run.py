@@ -427,9 +427,8 @@ def _solve_metrics(p, sc):
             row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, sc.mask))
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
-    w = getattr(res, "weights", None)
-    if p["method"] == "wps" and w is not None and np.ndim(w) == 3 \
-            and np.shape(w)[0] != np.shape(sc.images)[0]:
+    w = getattr(res, "ring_weights", None)
+    if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
                                                 mask=sc.mask, weights=w))
     dr = sc.dynamic_range()
