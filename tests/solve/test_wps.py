@@ -228,3 +228,17 @@ def test_residuals_match_explicit_computation(ts_scene):
         assert np.allclose(r.ring_residual[j], e, rtol=1e-3, atol=1e-5)
     res = np.sqrt(((I - kernel.lambert(r.normals * r.albedo[..., None], S)) ** 2).sum(0))
     assert np.allclose(r.residual, res, rtol=1e-3, atol=1e-4)
+
+
+def test_weights_per_observation_ring_weights_per_ring(ts_scene):
+    """One name per concept: ``weights`` (k, H, W) per observation (from the rings'
+    weighted solves) or None; ``ring_weights`` (rings, H, W)."""
+    I, lay, surf = ts_scene
+    plain = wps(I, lay)
+    assert plain.weights is None and plain.ring_weights.shape == (2,) + I.shape[1:]
+    w = wps(I, lay, mask="Th", weighted=True, object_mask=surf.mask)
+    assert w.weights.shape == I.shape and w.weights.dtype == np.float32
+    assert (w.weights[:, ~surf.mask] == 0).all() and (w.weights[:, surf.mask] > 0).all()
+    assert w.ring_weights.shape == (2,) + I.shape[1:]
+    assert set(w.thresholds) == {"ring0", "ring1"} and w.converged is True
+    assert "rings=2" in repr(w)
