@@ -41,7 +41,7 @@ __all__ = ["run"]
 
 
 def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, method=None,
-        overrides=None, want_height=False, truth=None, timer=None):
+        overrides=None, want_height=False, truth=None, timer=None, masks=None):
     """One solve on validated input: masks, method, weighted step, Result.
 
     Parameters
@@ -59,10 +59,12 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         None: masked least squares (the "ps" method) without a Problem.
     truth : (H, W, 3) or None
         Diagnostics: mean normal error per round in ``info["ne"]``.
+    masks : dict, optional
+        name -> Mask (default: the registered masks, read once per solve).
     """
     timer = timer or Timer()
-    specs = mask_specs()
-    specs = [specs[t] for t in tokens]
+    masks = mask_specs() if masks is None else masks
+    specs = [masks[t] for t in tokens]
     ctx = Context(images, lights, tuple(tokens), thresholds, options, object_mask, seed)
     info = {"th_scope": options.th_scope, "warnings": ctx.warnings}
     masked = method is None or method.masked
@@ -82,10 +84,11 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         fit = Fit(b=b)
     else:
         def engine(images_j, lights_j, *, truth_normals=None):
-            check_counts(tokens, images_j.shape[0], name)
+            check_counts(tokens, images_j.shape[0], name, masks)
+            thr_j = resolve_thresholds(images_j.shape[0], lights_j, overrides, masks=masks)
             return run(images_j, lights_j, tokens=tokens, options=options, seed=seed,
-                       thresholds=resolve_thresholds(images_j.shape[0], lights_j, overrides),
-                       object_mask=object_mask, overrides=overrides, truth=truth_normals)
+                       thresholds=thr_j, object_mask=object_mask, overrides=overrides,
+                       truth=truth_normals, masks=masks)
 
         scale = ctx.scale if ctx.ranges is not None else (lambda: _measure(ctx)["scale"])
         problem = Problem(images, lights, valid, object_mask, mask=name, thresholds=thresholds,

@@ -18,10 +18,17 @@ def _key(name):
     return (0, THESIS_ORDER.index(name), "") if name in THESIS_ORDER else (1, 0, name.lower())
 
 
+_ORDER_CACHE: dict = {}
+
+
 def mask_specs() -> dict:
     """name -> :class:`psbench.registry.Mask`, in presentation order."""
     specs = registry.masks()
-    return {n: specs[n] for n in sorted(specs, key=_key)}
+    names = tuple(specs)
+    order = _ORDER_CACHE.get(names)
+    if order is None:
+        order = _ORDER_CACHE[names] = tuple(sorted(names, key=_key))
+    return {n: specs[n] for n in order}
 
 
 def mask_names() -> tuple[str, ...]:
@@ -36,9 +43,9 @@ def method_names() -> tuple[str, ...]:
     return tuple(n for n in own if n in names) + tuple(n for n in names if n not in own)
 
 
-def check_counts(tokens, k, expr):
+def check_counts(tokens, k, expr, specs=None):
     """Refuse a mask of the expression that does not accept ``k`` images."""
-    specs = mask_specs()
+    specs = mask_specs() if specs is None else specs
     for t in tokens:
         lo, hi = specs[t].images
         if k < lo or (hi is not None and k > hi):

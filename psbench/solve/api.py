@@ -55,8 +55,10 @@ def __getattr__(name):  # compatibility names, computed from the registries when
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def parse_mask(mask) -> tuple[str, ...]:
-    """Split a mask name into canonical tokens ('th-hi' -> ('Th', 'Hi')); () for None."""
+def parse_mask(mask, *, specs=None) -> tuple[str, ...]:
+    """Split a mask name into canonical tokens ('th-hi' -> ('Th', 'Hi')); () for None.
+
+    ``specs``: name -> Mask to parse against (default: the registered masks)."""
     if mask is None:
         return ()
     if isinstance(mask, (list, tuple)):
@@ -65,7 +67,7 @@ def parse_mask(mask) -> tuple[str, ...]:
         parts = mask.replace("-", " ").replace("+", " ").split()
     else:
         raise PsbenchError(f"mask must be a string like 'Th-Hi-Re-Sh', got {type(mask).__name__}")
-    specs = mask_specs()
+    specs = mask_specs() if specs is None else specs
     canon = {n.lower(): n for n in specs}
     canon["none"] = "None"
     out = []
@@ -73,7 +75,7 @@ def parse_mask(mask) -> tuple[str, ...]:
         c = canon.get(p.strip().lower())
         if c is None:
             raise PsbenchError(
-                f"mask={mask!r}: unknown mask {p!r}; valid masks: {', '.join(mask_names())} "
+                f"mask={mask!r}: unknown mask {p!r}; valid masks: {', '.join(('None', *specs))} "
                 "(combine with '-', e.g. 'Th-Hi-Re-Sh')")
         if c != "None" and c not in out:
             out.append(c)
@@ -102,7 +104,7 @@ def _layout(lights, k):
 def _options(spec, explicit, opts):
     """The method's options from solve()'s keywords; ``weight`` / ``binary`` reach only a
     method that has them (as before: they are WPS's)."""
-    names = spec.options.names()
+    names = spec.options.__dataclass_fields__
     values = {k: v for k, v in explicit.items() if k in names or k not in ("weight", "binary")}
     clash = [k for k in opts if k in _EXPLICIT]
     if clash:
@@ -176,12 +178,13 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
     images = as_images(images, "images", min_count=3)
     k, H, W = images.shape
     lay = _layout(lights, k)
-    tokens = parse_mask(mask)
+    masks = mask_specs()
+    tokens = parse_mask(mask, specs=masks)
     spec = registry.get("methods", method, what="method")
     options = _options(spec, dict(max_iter=max_iter, th_scope=th_scope, weighted=weighted,
                                   weight=weight, binary=binary), opts)
-    check_counts(tokens, k, mask)
-    glob = [t for t in tokens if mask_specs()[t].stage == "normal" and not mask_specs()[t].local]
+    check_counts(tokens, k, mask, masks)
+    glob = [t for t in tokens if masks[t].stage == "normal" and not masks[t].local]
     if (glob or want_height) and min(H, W) < 2:
         what = " and ".join([f"the {t} mask" for t in glob] + ["want_height"] * want_height)
         raise PsbenchError(f"images of {H}x{W} pixels: {what} integrate heights and need at "
@@ -191,8 +194,8 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         raise PsbenchError("object_mask selects no pixel")
     if truth_normals is not None:
         truth_normals = as_normals(truth_normals, "truth_normals", (H, W))
-    thr = resolve_thresholds(k, lay, thresholds)
+    thr = resolve_thresholds(k, lay, thresholds, masks=masks)
     timer.lap("validate")
     return _engine.run(images, lay, tokens=tokens, thresholds=thr, options=options,
                        object_mask=omask, seed=seed, method=spec, overrides=thresholds,
-                       want_height=want_height, truth=truth_normals, timer=timer)
+                       want_height=want_height, truth=truth_normals, timer=timer, masks=masks)

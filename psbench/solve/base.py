@@ -227,12 +227,11 @@ class Options:
     def build(cls, values: dict | None = None, *, method: str = ""):
         """Options from a dict; unknown names are refused, listing the valid ones."""
         values = dict(values or {})
-        valid = cls.names()
-        bad = [k for k in values if k not in valid]
+        bad = [k for k in values if k not in cls.__dataclass_fields__]
         if bad:
             who = f"method {method!r}" if method else cls.__name__
             raise PsbenchError(f"unknown option(s) {', '.join(map(repr, bad))} for {who}; "
-                               f"valid options: {', '.join(valid)}")
+                               f"valid options: {', '.join(cls.names())}")
         return cls(**values)
 
 

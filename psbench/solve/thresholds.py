@@ -72,16 +72,16 @@ def __getattr__(name):  # NAMES, RANGES: computed from the registry when read
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def declared() -> dict:
-    """Every threshold the registered masks declare, name -> Threshold (first
-    declaration wins; a conflicting redeclaration warns)."""
+def declared(masks=None) -> dict:
+    """Every threshold the registered masks declare (or ``masks``, name -> Mask),
+    name -> Threshold (first declaration wins; a conflicting redeclaration warns)."""
     out, owner = {}, {}
-    for mname, spec in mask_specs().items():
+    for mname, spec in (mask_specs() if masks is None else masks).items():
         for t in spec.thresholds:
             prev = out.get(t.name)
             if prev is None:
                 out[t.name], owner[t.name] = t, mname
-            elif prev != t:
+            elif prev is not t and prev != t:
                 warnings.warn(f"psbench: mask {mname!r} declares threshold {t.name!r} "
                               f"differently from mask {owner[t.name]!r}; keeping the latter",
                               RuntimeWarning, stacklevel=3)
@@ -123,10 +123,10 @@ def _default(t, k, lights):
         return None if d is None else _compact(d)
     if isinstance(d, (tuple, list)) and t.counts is not None:
         return float(np.interp(k, t.counts, d))  # np.interp clamps beyond the ends
-    return _compact(d)
+    return float(d) if isinstance(d, (int, float)) else _compact(d)
 
 
-def resolve_thresholds(k, lights=None, overrides=None) -> dict:
+def resolve_thresholds(k, lights=None, overrides=None, *, masks=None) -> dict:
     """Resolve the thresholds used for ``k`` images.
 
     Parameters
@@ -138,6 +138,8 @@ def resolve_thresholds(k, lights=None, overrides=None) -> dict:
     overrides : dict, optional
         Values replacing the defaults, keyed by :data:`NAMES`. A per-light threshold
         (``t_Re``) may be a scalar or a sequence of k values.
+    masks : dict, optional
+        name -> Mask whose thresholds to resolve (default: every registered mask).
 
     Returns
     -------
@@ -147,7 +149,7 @@ def resolve_thresholds(k, lights=None, overrides=None) -> dict:
         of plug-in masks.
     """
     k = int(k)
-    decl = declared()
+    decl = declared(masks)
     out = {name: _default(t, k, lights) for name, t in decl.items()}
     if overrides is None:
         overrides = {}
