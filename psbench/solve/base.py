@@ -43,7 +43,8 @@ Validities are ANDed; where fewer than three observations remain, Eq. 3.1 adds b
 the masked ones of least unmasked-LS residual. A mask reads its thresholds from
 ``ctx.thresholds[name]`` (declared in ``Mask.thresholds``, so users can override them
 with ``solve(..., thresholds={name: value})``); a mask that reads ``ctx.ranges`` or
-``ctx.scale`` declares ``ranges=True``. ``ctx.cache`` is emptied before each stage
+``ctx.scale`` declares ``ranges=True`` (a local normal mask reads them through
+``ctx.flat_ranges()``, shaped for its flat arrays). ``ctx.cache`` is emptied before each stage
 evaluation: masks of one evaluation share work through it (Hi and CS share one
 Lambert residual).
 
