@@ -98,7 +98,9 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         for key, t in fit.timings.items():
             timer.t[key] = timer.t.get(key, 0.0) + t
     plain = masked and not tokens and fit.b is b and fit.valid is None and not options.weighted
-    b, weights = fit.b, fit.weights
+    b, weights = np.asarray(fit.b, dtype=np.float32), fit.weights
+    if np.ndim(fit.iterations):  # per-pixel counts: the map goes to info, the max to Result
+        info["iterations"] = fit.iterations
     if fit.valid is not None:
         valid = fit.valid
     if masked and options.weighted:
@@ -118,7 +120,8 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
     normal = masked and any(s.stage == "normal" for s in specs)
     return finish(ctx, b, valid, weights, timer=timer, name=name,
                   method=method.name if method is not None else "ps",
-                  iterations=rounds if normal else fit.iterations, info=info,
+                  iterations=rounds if normal else int(np.max(fit.iterations, initial=0)),
+                  info=info,
                   want_height=want_height, truth=truth, ne=ne, plain=plain,
                   residual=fit.residual, ring_weights=fit.ring_weights, fields=fit.fields,
                   result_type=fit.result_type, converged=info.get("converged", fit.converged))

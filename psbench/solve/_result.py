@@ -43,7 +43,8 @@ class Result:
     method : str
     iterations : int
         PS <-> normal-mask rounds when the expression has normal masks, else the
-        method's iterations (FWLSE; 0 for "ps").
+        method's iterations (FWLSE; 0 for "ps"; the largest of a per-pixel count, whose
+        map is then ``info["iterations"]``).
     thresholds : dict
         Resolved threshold values actually used.
     info : dict
@@ -54,8 +55,9 @@ class Result:
         (mean normal error per round when ``truth_normals`` was given), warnings.
     ring_weights : (rings, H, W) float32 or None
         Per-ring fusion weights of WPS (sum 1 per pixel); None otherwise.
-    converged : bool or str
-        ``info["converged"]`` when the solve iterated, else the method's verdict.
+    converged : bool, str or (H, W) bool array
+        ``info["converged"]`` when the mask rounds or the method set it, else the
+        method's verdict (``Fit.converged``).
     """
 
     normals: np.ndarray

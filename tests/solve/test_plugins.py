@@ -57,6 +57,7 @@ class ShrinkOptions(Options):
 
 def _shrink(problem, options):
     return Fit(b=problem.start() * np.float32(options.shrink),
+               iterations=np.full(problem.images.shape[1:], 2),  # a per-pixel count
                info={"kept": int(problem.valid.sum())})
 
 
@@ -122,7 +123,9 @@ def test_runtime_method_with_a_mask(scene, plugins):
     assert res.info["kept"] == int(ref.valid.sum())
     np.testing.assert_allclose(res.albedo, 0.25 * ref.albedo, rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(res.normals, ref.normals, atol=1e-5)
-    assert res.iterations == ref.iterations
+    assert res.iterations == ref.iterations  # the mask rounds, with a normal mask
+    alone = ps.solve(sc.images, lay, method="mymethod")
+    assert alone.iterations == 2 and alone.info["iterations"].shape == sc.images.shape[1:]
     with pytest.raises(PsbenchError, match=r"unknown option.*'shrnk'.*valid options:.*shrink"):
         ps.solve(sc.images, lay, method="mymethod", shrnk=0.5)
     with pytest.raises(PsbenchError, match=r"shrink must be a number in \(0, 1\]"):
