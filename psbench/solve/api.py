@@ -22,8 +22,6 @@ from __future__ import annotations
 
 from dataclasses import fields
 
-import numpy as np
-
 from .. import registry
 from .._checks import PsbenchError, as_images, as_mask, as_normals
 from . import _engine
