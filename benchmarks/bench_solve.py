@@ -176,17 +176,23 @@ def against(other, size=512, runs=5, rounds=5, surface="sombrero", blas="1"):
           f"per tree; medians over rounds of each round's median (ms)")
     print(f"this  = {trees['this']}\nother = {trees['other']}")
     print(f"load average {load0[0]:.1f} at start, {load1[0]:.1f} at end, {os.cpu_count()} cores")
-    print(f"{'mask':14s} {'lights':10s} {'other':>9s} {'this':>9s} {'this/other':>10s} "
-          f"{'cpu other':>9s} {'cpu this':>9s}")
+    print(f"{'mask':14s} {'lights':10s} {'other':>8s} {'this':>8s} {'ratio':>6s} "
+          f"{'min oth':>8s} {'min this':>8s} {'ratio':>6s} {'cpu oth':>8s} {'cpu this':>8s} "
+          f"{'ratio':>6s}")
     table = []
     for i, row in enumerate(got["this"][0]):
         med = {n: float(np.median([g[i]["median"] for g in got[n]])) for n in got}
+        mn = {n: float(np.min([g[i]["min"] for g in got[n]])) for n in got}
         cpu = {n: float(np.median([g[i]["cpu"] for g in got[n]])) for n in got}
         table.append(dict(mask=row["mask"], lights=row["lights"], other=med["other"],
-                          this=med["this"], cpu_other=cpu["other"], cpu_this=cpu["this"]))
-        print(f"{row['mask']:14s} {row['lights']:10s} {med['other'] * 1e3:9.1f} "
-              f"{med['this'] * 1e3:9.1f} {med['this'] / med['other']:10.2f} "
-              f"{cpu['other'] * 1e3:9.1f} {cpu['this'] * 1e3:9.1f}")
+                          this=med["this"], min_other=mn["other"], min_this=mn["this"],
+                          cpu_other=cpu["other"], cpu_this=cpu["this"]))
+        print(f"{row['mask']:14s} {row['lights']:10s} {med['other'] * 1e3:8.1f} "
+              f"{med['this'] * 1e3:8.1f} {med['this'] / med['other']:6.2f} "
+              f"{mn['other'] * 1e3:8.1f} {mn['this'] * 1e3:8.1f} {mn['this'] / mn['other']:6.2f} "
+              f"{cpu['other'] * 1e3:8.1f} {cpu['this'] * 1e3:8.1f} {cpu['this'] / cpu['other']:6.2f}")
+    print("median: of the rounds' median wall; min: fastest wall run of all rounds (least "
+          "disturbed by other load); cpu: median of the rounds' median process CPU")
     return table
 
 
