@@ -104,9 +104,6 @@ def _options(spec, explicit, opts):
     method that has them (as before: they are WPS's)."""
     names = spec.options.__dataclass_fields__
     values = {k: v for k, v in explicit.items() if k in names or k not in ("weight", "binary")}
-    clash = [k for k in opts if k in _EXPLICIT]
-    if clash:
-        raise PsbenchError(f"solve() got {clash[0]!r} twice")
     values.update(opts)
     return spec.options.build(values, method=spec.name)
 
