@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/bench_solve.py [--size 512] [--runs 5] [--big 2048] [--surface sombrero]
+    python benchmarks/bench_solve.py --against OTHER_TREE [--rounds 5] [--size 512]
 
 Scenes: Torrance-Sparrow images with shadows, no noise, 16 lights ("30x8+60x8") or
 4 lights ("45x4") for CJ. Prints the median wall time of ``--runs`` runs (timed
@@ -11,6 +12,11 @@ psbench target and the thesis's Matlab time (Table 5.3: averages over its test s
 Intel Core 2 Quad, images of 512 x 512; a context figure, not a like-for-like
 comparison). ``--big`` runs weighted Th-Hi-Re-Sh once at that size in a subprocess
 and reports its time and peak RSS (``resource.getrusage(RUSAGE_CHILDREN)``).
+
+``--against OTHER_TREE`` compares two source trees (e.g. a ``git worktree`` of an older
+commit) in one session: each round runs this script once per tree in a subprocess
+(``PYTHONPATH`` = the tree, alternating which goes first), and prints, per case, the
+median over rounds of each tree's median with the ratio this tree / other.
 
 The machine is shared: figures are noisy, compare ratios rather than absolutes; the
 process CPU time column is the steadier figure. ``--blas-threads`` (default 1) sets
@@ -148,6 +154,48 @@ def bench_big(size=2048, surface="sombrero", lights="30x8+60x8"):
     return info, peak
 
 
+def against(other, size=512, runs=5, rounds=5, surface="sombrero", blas="1"):
+    """Interleaved A/B of this tree against ``other`` (module docs)."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    trees = {"this": here, "other": os.path.abspath(other)}
+    got = {"this": [], "other": []}
+    load0 = os.getloadavg()
+    with tempfile.TemporaryDirectory() as d:
+        for r in range(rounds):
+            for name in (("other", "this") if r % 2 == 0 else ("this", "other")):
+                out = os.path.join(d, f"{name}{r}.json")
+                env = dict(os.environ, PYTHONPATH=trees[name])
+                subprocess.run([sys.executable, os.path.abspath(__file__), "--size", str(size),
+                                "--runs", str(runs), "--big", "0", "--surface", surface,
+                                "--blas-threads", blas, "--json", out], check=True, env=env,
+                               stdout=subprocess.DEVNULL)
+                with open(out) as fh:
+                    got[name].append(json.load(fh))
+    load1 = os.getloadavg()
+    print(f"\nA/B at {size}x{size}, surface {surface}: {rounds} interleaved rounds x {runs} runs "
+          f"per tree; medians over rounds of each round's median (ms)")
+    print(f"this  = {trees['this']}\nother = {trees['other']}")
+    print(f"load average {load0[0]:.1f} at start, {load1[0]:.1f} at end, {os.cpu_count()} cores")
+    print(f"{'mask':14s} {'lights':10s} {'other':>8s} {'this':>8s} {'ratio':>6s} "
+          f"{'min oth':>8s} {'min this':>8s} {'ratio':>6s} {'cpu oth':>8s} {'cpu this':>8s} "
+          f"{'ratio':>6s}")
+    table = []
+    for i, row in enumerate(got["this"][0]):
+        med = {n: float(np.median([g[i]["median"] for g in got[n]])) for n in got}
+        mn = {n: float(np.min([g[i]["min"] for g in got[n]])) for n in got}
+        cpu = {n: float(np.median([g[i]["cpu"] for g in got[n]])) for n in got}
+        table.append(dict(mask=row["mask"], lights=row["lights"], other=med["other"],
+                          this=med["this"], min_other=mn["other"], min_this=mn["this"],
+                          cpu_other=cpu["other"], cpu_this=cpu["this"]))
+        print(f"{row['mask']:14s} {row['lights']:10s} {med['other'] * 1e3:8.1f} "
+              f"{med['this'] * 1e3:8.1f} {med['this'] / med['other']:6.2f} "
+              f"{mn['other'] * 1e3:8.1f} {mn['this'] * 1e3:8.1f} {mn['this'] / mn['other']:6.2f} "
+              f"{cpu['other'] * 1e3:8.1f} {cpu['this'] * 1e3:8.1f} {cpu['this'] / cpu['other']:6.2f}")
+    print("median: of the rounds' median wall; min: fastest wall run of all rounds (least "
+          "disturbed by other load); cpu: median of the rounds' median process CPU")
+    return table
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=512)
@@ -156,8 +204,19 @@ def main(argv=None):
     ap.add_argument("--surface", default="sombrero")
     ap.add_argument("--blas-threads", default="1",
                     help="BLAS threads (set before numpy loads; 0 = library default)")
+    ap.add_argument("--json", help="also write the rows to this file")
+    ap.add_argument("--against", help="another source tree to compare with (A/B)")
+    ap.add_argument("--rounds", type=int, default=5, help="A/B rounds (with --against)")
     a = ap.parse_args(argv)
-    bench(a.size, max(5, a.runs), a.surface)
+    if a.against:
+        against(a.against, a.size, max(5, a.runs), a.rounds, a.surface, a.blas_threads)
+        return
+    rows = bench(a.size, max(5, a.runs), a.surface)
+    if a.json:
+        keys = ("mask", "lights", "median", "ratio", "target", "matlab", "ne", "iterations",
+                "min", "cpu")
+        with open(a.json, "w") as fh:
+            json.dump([dict(zip(keys, r)) for r in rows], fh, default=float)
     if a.big:
         bench_big(a.big, a.surface)
 

@@ -200,10 +200,6 @@ def _solve_metrics(p, sc):
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
     w = getattr(res, "ring_weights", None)
-    if w is None and p["method"] == "wps":     # ring weights in Result.weights (older solve)
-        w = getattr(res, "weights", None)
-        w = w if w is not None and np.ndim(w) == 3 and np.shape(w)[0] != sc.images.shape[0] \
-            else None
     if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
                                                 mask=sc.mask, weights=w))

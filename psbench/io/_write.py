@@ -207,13 +207,13 @@ def write_outputs(path, result, *, object_mask=None, ply=True, binary_ply=True):
     mask), ``height.npy`` and ``mesh.ply`` (when the result has a height or
     :func:`psbench.integrate` is available), ``valid.npy`` + ``valid/NNN.png``
     (0/255, True = used), ``weights.npy`` + ``weights/NNN.png`` (16-bit, divided by
-    the max weight). Each file is written to a temp name and renamed.
+    the max weight), likewise ``ring_weights`` (WPS). Each file is written to a temp name and renamed.
 
     Parameters
     ----------
     path : str or Path
     result : psbench Result (or any object with ``.normals`` and optional
-        ``.albedo .height .valid .weights``)
+        ``.albedo .height .valid .weights .ring_weights``)
     object_mask : (H, W) bool, optional
         The object region (default all).
     """
@@ -256,7 +256,7 @@ def write_outputs(path, result, *, object_mask=None, ply=True, binary_ply=True):
         if ply:
             write_ply(out / "mesh.ply", hgt, object_mask=m, binary=binary_ply)
             written.append("mesh.ply")
-    for name, scale in (("valid", None), ("weights", "max")):
+    for name, scale in (("valid", None), ("weights", "max"), ("ring_weights", "max")):
         a = getattr(result, name, None)
         if a is None:
             continue

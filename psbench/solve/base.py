@@ -1,5 +1,55 @@
 """The contracts between :func:`psbench.solve`, its masks and its methods.
 
+:func:`psbench.solve` runs Fig. 3.1 of the thesis as a pipeline of registered pieces:
+
+1. the **mask expression** (``"Th-Hi-Re-Sh"``) is parsed against the ``psbench.masks``
+   registry; the thresholds every registered mask declares are resolved for the image
+   count (:func:`psbench.solve.thresholds.resolve_thresholds`);
+2. for a masked method, the **mask engine** runs the subset and image masks, the first
+   least-squares solve (Eq. 3.1's completion keeps three observations per pixel) and
+   the PS <-> normal-mask rounds;
+3. the **method** computes rho * n from a :class:`Problem`; the weighted-mask step
+   (Eq. 3.19) follows when ``weighted=True``; the :class:`~psbench.solve.Result` is
+   assembled.
+
+Masks
+-----
+A mask is a :class:`psbench.registry.Mask` whose ``func`` follows its stage's contract.
+Every mask function receives a :class:`Context` ``ctx`` and returns **validity**, a
+new bool array (True = observation used; the engine may modify it in place):
+
+=======================  ==============================================================
+stage                    contract
+=======================  ==============================================================
+``"image"``              ``func(images, ctx) -> valid``; images (k, H, W) float32,
+                         valid (k, H, W) bool (Th, NL)
+``"subset"``             same signature (xNL, RA)
+``"subset"``, fuses      ``func(images, ctx) -> (b, valid)``: its own fused solution
+                         b (H, W, 3) float32 and the observations it used (CJ); cannot
+                         be combined with other masks
+``"normal"``, local      ``func(images, b, ctx) -> valid`` on **flat** arrays: images
+                         (k, n) float32, b (n, 3) float32 (rho * n), valid (k, n) bool.
+                         It depends on each pixel's own solution only, so after the
+                         first round the engine passes only the pixels whose solution
+                         changed (``ctx.pixels`` holds their flat indices; None = all
+                         pixels in order) (SS, Re, CS, Hi)
+``"normal"``, global     ``func(images, b, ctx) -> valid`` on full arrays: images
+                         (k, H, W), b (H, W, 3), valid (k, H, W); evaluated on every
+                         pixel each round (``local=False``: Sh, which integrates the
+                         normals into heights)
+=======================  ==============================================================
+
+Validities are ANDed; where fewer than three observations remain, Eq. 3.1 adds back
+the masked ones of least unmasked-LS residual. A mask reads its thresholds from
+``ctx.thresholds[name]`` (declared in ``Mask.thresholds``, so users can override them
+with ``solve(..., thresholds={name: value})``); a mask that reads ``ctx.ranges`` or
+``ctx.scale`` declares ``ranges=True`` (a local normal mask reads them through
+``ctx.flat_ranges()``, shaped for its flat arrays). ``ctx.cache`` is emptied before each stage
+evaluation: masks of one evaluation share work through it (Hi and CS share one
+Lambert residual).
+
+Methods
+-------
 A **method** (``psbench.methods`` entry point, :class:`psbench.registry.Method`) is
 
     func(problem: Problem, options: <its Options dataclass>) -> Fit
@@ -8,23 +58,58 @@ A **method** (``psbench.methods`` entry point, :class:`psbench.registry.Method`)
 ``mask="None"``); a robust method uses only those (it may drop more, and reports what it
 used in ``Fit.valid`` / ``Fit.weights``). ``problem.start()`` gives the masked
 least-squares solution (computed once, on first use), a natural starting point.
+A method registered with ``masked=False`` runs the masks itself: ``problem.valid`` is
+then all True (read-only) and ``problem.engine(images, lights)`` runs this solve's
+mask expression and options on any subset of the observations (WPS: once per ring).
 
 A method's options class subclasses :class:`Options` (the options of the mask engine:
 ``max_iter``, ``iter_tol``, ``th_scope``, ...), adds its own fields with defaults,
 documents each in its numpydoc docstring and validates them in ``__post_init__``
 (call ``super().__post_init__()``), raising :class:`psbench.PsbenchError` with a
-one-line message naming the option and the valid range.
+one-line message naming the option and the valid range. A method that reads
+``problem.scale`` may set the class attribute ``needs_ranges = True`` so the ranges
+are measured once, before the masks (FWLSE does; otherwise they are measured on first
+read).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Any, Callable
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from .._checks import PsbenchError
 
-__all__ = ["Options", "Problem", "Fit", "check_int", "check_number", "check_choice"]
+__all__ = ["Options", "Problem", "Fit", "Context", "Lazy", "check_int", "check_number",
+           "check_choice", "check_bool"]
+
+_MISSING = object()
+
+
+class Lazy:
+    """A dataclass field that may be given as a zero-argument function: it is called on
+    first read and its value kept (for values that cost a pass over the images and that
+    many callers never read, e.g. the unmasked residual map or the dynamic range)."""
+
+    def __init__(self, default=_MISSING):
+        self.default = default
+
+    def __set_name__(self, owner, name):
+        self.slot = "_lazy_" + name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            if self.default is _MISSING:
+                raise AttributeError(self.slot)  # class access: the field has no default
+            return self.default
+        value = obj.__dict__[self.slot]
+        if callable(value):
+            value = value()
+            obj.__dict__[self.slot] = value
+        return value
+
+    def __set__(self, obj, value):
+        obj.__dict__[self.slot] = value
 
 
 def check_int(value, name, *, lo=None, hi=None):
@@ -57,7 +142,15 @@ def check_number(value, name, *, lo=None, hi=None, lo_open=False, hi_open=False,
     return float(value)
 
 
+def check_bool(value, name):
+    """A true/false option (numpy bools accepted)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise PsbenchError(f"{name} must be true or false, got {value!r}")
+    return bool(value)
+
+
 def check_choice(value, valid, name):
+    """One of ``valid``; otherwise the error lists them."""
     if value not in valid:
         raise PsbenchError(f"{name}={value!r} is not known; valid choices: "
                            f"{', '.join(map(str, valid))}")
@@ -107,18 +200,19 @@ class Options:
     kernel_size: int = 15
     sigma_min: float | None = None
 
+    #: the method reads ``problem.scale``: measure the ranges before the masks
+    needs_ranges: ClassVar[bool] = False
+
     def __post_init__(self):
         check_int(self.max_iter, "max_iter", lo=0)
         check_number(self.iter_tol, "iter_tol", lo=0, hi=1, hi_open=True)
         check_choice(self.th_scope, ("image", "object", "robust", "pixel"), "th_scope")
-        if not isinstance(self.th_offset, (bool, np.bool_)):
-            raise PsbenchError(f"th_offset must be true or false, got {self.th_offset!r}")
+        check_bool(self.th_offset, "th_offset")
         check_number(self.sh_bias, "sh_bias", allow_none=True)
         check_choice(self.integrate_method, ("poisson", "fc"), "integrate_method")
         if self.n_subsets is not None:
             check_int(self.n_subsets, "n_subsets", lo=1)
-        if not isinstance(self.weighted, (bool, np.bool_)):
-            raise PsbenchError(f"weighted must be true or false, got {self.weighted!r}")
+        check_bool(self.weighted, "weighted")
         check_int(self.dilate_radius, "dilate_radius", lo=0)
         check_int(self.kernel_size, "kernel_size", lo=1)
         if self.kernel_size % 2 == 0:
@@ -134,12 +228,11 @@ class Options:
     def build(cls, values: dict | None = None, *, method: str = ""):
         """Options from a dict; unknown names are refused, listing the valid ones."""
         values = dict(values or {})
-        valid = cls.names()
-        bad = [k for k in values if k not in valid]
+        bad = [k for k in values if k not in cls.__dataclass_fields__]
         if bad:
             who = f"method {method!r}" if method else cls.__name__
             raise PsbenchError(f"unknown option(s) {', '.join(map(repr, bad))} for {who}; "
-                               f"valid options: {', '.join(valid)}")
+                               f"valid options: {', '.join(cls.names())}")
         return cls(**values)
 
 
@@ -154,17 +247,25 @@ class Problem:
     lights : Layout
     valid : (k, H, W) bool
         Observations the mask expression allows (True = may be used); after Eq. 3.1's
-        completion, so every pixel keeps at least three.
+        completion, so every pixel keeps at least three. All True (read-only) for a
+        method registered with ``masked=False``.
     object_mask : (H, W) bool
     mask : str
         Canonical mask expression ("Th-Hi-Re-Sh", "None").
     thresholds : dict
         Resolved thresholds.
     scale : float
-        Mean dynamic range of the images (> 0): a natural unit for residual scales.
+        Mean dynamic range of the images (> 0; ``th_scope`` decides over which pixels):
+        a natural unit for residual scales. Measured on first read unless the options
+        class sets ``needs_ranges``.
     seed : int
     truth_normals : (H, W, 3) or None
         Diagnostics only.
+    engine : callable or None
+        ``engine(images, lights, *, truth_normals=None) -> Result``: this solve's mask
+        expression, thresholds overrides and options run as masked least squares
+        (subsets, image masks, PS <-> normal masks, weighted masks) on other images,
+        e.g. one ring's; thresholds are resolved for their image count.
     """
 
     images: np.ndarray
@@ -173,7 +274,7 @@ class Problem:
     object_mask: np.ndarray
     mask: str = "None"
     thresholds: dict = field(default_factory=dict)
-    scale: float = 1.0
+    scale: float = Lazy(1.0)
     seed: int = 0
     truth_normals: np.ndarray | None = None
     _start: Any = None
@@ -186,7 +287,11 @@ class Problem:
 
     def start(self) -> np.ndarray:
         """Masked least-squares solution rho * n, (H, W, 3) float32 (cached)."""
-        if callable(self._start):
+        if self._start is None:
+            from .kernel import ls, wls
+            v = self.valid
+            self._start = ls(self.images, self.S) if v.all() else wls(self.images, self.S, v)
+        elif callable(self._start):
             self._start = self._start()
         return self._start
 
@@ -207,7 +312,19 @@ class Fit:
     iterations : int or (H, W) int array
     converged : bool, str or (H, W) bool array
     info : dict
-        Method-specific extras (stored in ``Result.info``).
+        Method-specific extras (merged into ``Result.info``).
+    residual : (H, W) float32 or None
+        The method's own residual map of the final solution, when it has it exactly
+        (WPS); None: computed over ``valid`` from ``b``.
+    ring_weights : (rings, H, W) float32 or None
+        Per-ring fusion weights (WPS, Eq. 4.9).
+    timings : dict
+        Stage -> seconds inside the method (merged into ``Result.timings``).
+    fields : dict
+        Further fields of ``result_type`` (WPS: ``ring_normals``, ...; may set
+        ``thresholds``).
+    result_type : type or None
+        A :class:`~psbench.solve.Result` subclass to return (None: ``Result``).
     """
 
     b: np.ndarray
@@ -216,3 +333,93 @@ class Fit:
     iterations: Any = 0
     converged: Any = True
     info: dict = field(default_factory=dict)
+    residual: np.ndarray | None = None
+    ring_weights: np.ndarray | None = None
+    timings: dict = field(default_factory=dict)
+    fields: dict = field(default_factory=dict)
+    result_type: type | None = None
+
+
+@dataclass(eq=False)
+class Context:
+    """What a mask function sees (see the stage contracts above).
+
+    Attributes
+    ----------
+    images : (k, H, W) float32
+        All images of the solve (the stage's own ``images`` argument may be a flat
+        subset of them).
+    lights : Layout
+    tokens : tuple of str
+        Canonical mask names of the expression (``("Th", "Hi", "Re", "Sh")``): a mask may
+        adapt to its company (NL-Re).
+    thresholds : dict
+        Resolved thresholds (every registered mask's, overrides applied).
+    options : Options
+        The method's options (``th_scope``, ``sh_bias``, ``n_subsets``, ...).
+    object_mask : (H, W) bool
+    seed : int
+    ranges : dict or None
+        Dynamic ranges (:func:`psbench.solve.masks.ranges`: ``lo``, ``rng``, ``lo_up``,
+        ``rng_up`` (k, 1, 1) or (1, H, W), ``scale``, ``dead``), measured before the
+        masks when any stage declared that it reads them, else None.
+    cache : dict
+        Emptied by the engine before each stage evaluation; shared by the masks of one
+        evaluation.
+    pixels : (n,) int array or None
+        Local normal stage: flat pixel indices of the columns passed (None: all).
+    warnings : list of str
+        Messages also stored in ``Result.info["warnings"]``.
+    """
+
+    images: np.ndarray
+    lights: Any
+    tokens: tuple
+    thresholds: dict
+    options: Options
+    object_mask: np.ndarray
+    seed: int = 0
+    ranges: dict | None = None
+    cache: dict = field(default_factory=dict)
+    pixels: np.ndarray | None = None
+    warnings: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.S = self.lights.S.astype(np.float64)
+        self.S32 = self.S.astype(np.float32)
+        self.directions = self.lights.directions
+        self.full = bool(self.object_mask.all())
+        self._flat = None
+
+    @property
+    def k(self) -> int:
+        return self.images.shape[0]
+
+    @property
+    def region(self):
+        """``object_mask``, or None when it selects every pixel (cheaper paths)."""
+        return None if self.full else self.object_mask
+
+    @property
+    def scale(self) -> float:
+        """Mean dynamic range of the images when ``ranges`` were measured, else 1."""
+        return self.ranges["scale"] if self.ranges is not None else 1.0
+
+    def t_re(self) -> np.ndarray:
+        """The resolved t_Re as a (k,) float array (degrees)."""
+        from .thresholds import t_re_array
+        return t_re_array(self.thresholds, self.k)
+
+    def flat_ranges(self):
+        """``(rng, dead)`` broadcastable to the flat (k, n) arrays of a local normal
+        mask: ``rng`` (k, 1) per image or (1, n) per pixel; ``dead`` (k, 1) bool for
+        zero-range images (to be kept valid), or None when there is none."""
+        if self._flat is None:
+            rng = self.ranges["rng"]
+            dead = self.ranges["dead"]
+            self._flat = (rng.reshape(rng.shape[0], -1),
+                          dead.reshape(-1, 1) if dead.any() else None)
+        rng, dead = self._flat
+        if self.pixels is not None and rng.shape[1] > 1:
+            rng = rng[:, self.pixels]
+        return rng, dead

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["wls", "ls", "split", "lambert", "residuals", "complete_three", "CHUNK"]
+__all__ = ["wls", "ls", "split", "lambert", "residuals", "residual_norm", "ls_residual_norm",
+           "complete_three", "CHUNK"]
 
 #: pixels per chunk (bounds temporaries at ~k * CHUNK * 4 bytes)
 CHUNK = 1 << 18
@@ -127,15 +128,76 @@ def split(b, *, eps=1e-6):
 
 
 def lambert(b, S):
-    """Lambert images rho * s_i . n (no clamping), (k, H, W) float32 (Eq. 3.14)."""
-    H, W, _ = b.shape
+    """Lambert images rho * s_i . n (no clamping), Eq. 3.14.
+
+    Parameters
+    ----------
+    b : (*P, 3) float32
+        rho * n on any pixel layout ((H, W, 3) or flat (N, 3)).
+    S : (k, 3) array_like
+
+    Returns
+    -------
+    (k, *P) float32
+    """
+    P = b.shape[:-1]
     S = np.asarray(S, dtype=np.float32)
-    return (S @ b.reshape(-1, 3).T).reshape(-1, H, W)
+    return (S @ b.reshape(-1, 3).T).reshape((S.shape[0],) + P)
 
 
 def residuals(images, b, S):
-    """Signed residuals I - L for every observation, (k, H, W) float32 (Eq. 3.1)."""
+    """Signed residuals I - rho s.n for every observation, (k, *P) float32 (Eq. 3.1);
+    ``images`` (k, *P), ``b`` (*P, 3)."""
     return images - lambert(b, S)
+
+
+def residual_norm(images, b, S, valid=None, *, step=16384):
+    """sqrt(sum_i valid_i (I_i - s_i . b)^2) per pixel, float32 of shape ``images.shape[1:]``.
+
+    ``images`` (k, *P) with ``b`` (*P, 3); ``valid`` (k, *P) bool or None (all
+    observations). Chunked over pixels so the (k, step) block stays in cache.
+    """
+    k = images.shape[0]
+    P = images.shape[1:]
+    I2 = images.reshape(k, -1)
+    B = b.reshape(-1, 3)
+    S32 = np.asarray(S, dtype=np.float32)
+    V = None if valid is None else valid.reshape(k, -1)
+    N = I2.shape[1]
+    out = np.empty(N, dtype=np.float32)
+    for lo in range(0, N, step):
+        hi = min(N, lo + step)
+        r = I2[:, lo:hi] - S32 @ B[lo:hi].T
+        r *= r
+        if V is not None:
+            r *= V[:, lo:hi]
+        out[lo:hi] = r.sum(axis=0)
+    np.sqrt(out, out=out)
+    return out.reshape(P)
+
+
+def ls_residual_norm(images, S):
+    """Residual norm of the unmasked least-squares solution, (H, W) float32, exactly,
+    from the coordinates of I in an orthonormal basis of null(S^T):
+    |I - S S^+ I| = |U_perp^T I| (no solve needed)."""
+    k, H, W = images.shape
+    if k == 3:
+        return np.zeros((H, W), dtype=np.float32)
+    U = np.linalg.svd(np.asarray(S, dtype=np.float64), full_matrices=True)[0][:, 3:]
+    U = np.ascontiguousarray(U.T, dtype=np.float32)  # (k - 3, k)
+    I2 = images.reshape(k, -1)
+    N = I2.shape[1]
+    out = np.empty(N, dtype=np.float32)
+    step = 4096  # keeps the (k - 3, step) block in cache
+    X = np.empty((k - 3, step), dtype=np.float32)
+    for lo in range(0, N, step):
+        hi = min(N, lo + step)
+        Xv = X[:, :hi - lo]
+        np.matmul(U, I2[:, lo:hi], out=Xv)
+        Xv *= Xv
+        Xv.sum(axis=0, out=out[lo:hi])
+    np.sqrt(out, out=out)
+    return out.reshape(H, W)
 
 
 def complete_three(valid, residual):

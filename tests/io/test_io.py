@@ -295,5 +295,5 @@ def test_write_outputs_from_solve_and_wps(tmp_path):
     assert len(list((tmp_path / "ps" / "valid").glob("*.png"))) == 8
     w = solve(sc.images, lay, method="wps", object_mask=s.object_mask)
     io.write_outputs(tmp_path / "wps", w, object_mask=s.object_mask)
-    assert len(list((tmp_path / "wps" / "weights").glob("*.png"))) == 2  # one per ring
+    assert len(list((tmp_path / "wps" / "ring_weights").glob("*.png"))) == 2  # one per ring
     assert (tmp_path / "wps" / "mesh.ply").is_file()  # height integrated when absent

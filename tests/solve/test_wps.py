@@ -48,10 +48,10 @@ def test_noiseless_lambert_exact(weight, binary):
     assert r.method == "wps"
     assert normal_error(r.normals, n) < 0.01
     assert np.allclose(r.albedo, 0.8, atol=1e-3)
-    assert r.weights.shape == (2,) + I.shape[1:]
+    assert r.ring_weights.shape == (2,) + I.shape[1:]
     assert r.ring_normals.shape == (2,) + I.shape[1:] + (3,)
     assert r.ring_albedo.shape == r.ring_residual.shape == (2,) + I.shape[1:]
-    assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+    assert np.allclose(r.ring_weights.sum(0), 1.0, atol=1e-5)
 
 
 @pytest.mark.parametrize("weight", WEIGHTS)
@@ -59,10 +59,10 @@ def test_weights_sum_to_one_and_nonnegative(ts_scene, weight):
     I, lay, surf = ts_scene
     for binary in (False, True):
         r = wps(I, lay, weight=weight, binary=binary, truth_normals=surf.normals)
-        assert (r.weights >= 0).all()
-        assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+        assert (r.ring_weights >= 0).all()
+        assert np.allclose(r.ring_weights.sum(0), 1.0, atol=1e-5)
         if binary:
-            assert set(np.unique(r.weights)) <= {0.0, 1.0} or weight == "None"
+            assert set(np.unique(r.ring_weights)) <= {0.0, 1.0} or weight == "None"
 
 
 def test_e_weights_match_eq_4_13(ts_scene):
@@ -70,8 +70,8 @@ def test_e_weights_match_eq_4_13(ts_scene):
     r = wps(I, lay, weight="e")
     e1, e2 = r.ring_residual.astype(np.float64)
     w1 = e2 ** 2 / (e1 ** 2 + e2 ** 2)
-    assert np.allclose(r.weights[0], w1, atol=1e-4)
-    assert np.allclose(r.weights[1], 1 - w1, atol=1e-4)
+    assert np.allclose(r.ring_weights[0], w1, atol=1e-4)
+    assert np.allclose(r.ring_weights[1], 1 - w1, atol=1e-4)
 
 
 def test_ezsource_weights_match_eq_4_14(ts_scene):
@@ -80,7 +80,7 @@ def test_ezsource_weights_match_eq_4_14(ts_scene):
     e1, e2 = r.ring_residual.astype(np.float64)
     u1 = np.sin(np.radians(30)) * e2 ** 2
     u2 = np.sin(np.radians(60)) * e1 ** 2
-    assert np.allclose(r.weights[0], u1 / (u1 + u2), atol=1e-4)
+    assert np.allclose(r.ring_weights[0], u1 / (u1 + u2), atol=1e-4)
 
 
 def test_ezsourcezsurface_uses_sin_z2_and_mirrored_sigmoid(ts_scene):
@@ -92,14 +92,14 @@ def test_ezsourcezsurface_uses_sin_z2_and_mirrored_sigmoid(ts_scene):
     s = lambda x: 1 / (1 + np.exp(-10 * (x - 0.5)))  # noqa: E731
     u1 = np.sin(np.radians(30)) * s(z1) * e2 ** 2
     u2 = np.sin(np.radians(60)) * s(1 - z2) * e1 ** 2
-    assert np.allclose(r.weights[0], u1 / (u1 + u2), atol=2e-3)
+    assert np.allclose(r.ring_weights[0], u1 / (u1 + u2), atol=2e-3)
 
 
 def test_binary_picks_lower_residual_ring(ts_scene):
     I, lay, _ = ts_scene
     r = wps(I, lay, weight="e", binary=True)
     low = np.argmin(r.ring_residual, axis=0)
-    assert np.array_equal(np.argmax(r.weights, axis=0), low)
+    assert np.array_equal(np.argmax(r.ring_weights, axis=0), low)
     # the fused normal is that ring's normal
     pick = np.take_along_axis(r.ring_normals, low[None, ..., None], 0)[0]
     assert np.allclose(pick, r.normals, atol=1e-5)
@@ -123,7 +123,7 @@ def test_ezsurface_favours_high_ring_on_smooth_and_low_ring_on_steep():
     zen = np.degrees(np.arccos(n[..., 2]))
     smooth, steep = zen < 10, zen > 30
     assert smooth.sum() > 20 and steep.sum() > 20
-    w_low = r.weights[0]
+    w_low = r.ring_weights[0]
     assert w_low[smooth].mean() < 0.2
     assert w_low[steep].mean() > 5 * w_low[smooth].mean()
 
@@ -150,14 +150,14 @@ def test_three_rings():
     I, lay, n = _scene("30x4+45x4+60x4")
     for weight in WEIGHTS:
         r = wps(I, lay, weight=weight, truth_normals=n)
-        assert r.weights.shape == (3,) + I.shape[1:]
-        assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+        assert r.ring_weights.shape == (3,) + I.shape[1:]
+        assert np.allclose(r.ring_weights.sum(0), 1.0, atol=1e-5)
         assert normal_error(r.normals, n) < 0.01
     # R = 3, weight e: w_j ∝ 1/e_j^2
     I, lay, n = _scene("30x4+45x4+60x4", noise=0.02)
     r = wps(I, lay, weight="e")
     inv = 1 / r.ring_residual.astype(np.float64) ** 2
-    assert np.allclose(r.weights, inv / inv.sum(0), atol=1e-4)
+    assert np.allclose(r.ring_weights, inv / inv.sum(0), atol=1e-4)
 
 
 def test_three_rings_oracle_never_worse():
@@ -178,7 +178,7 @@ def test_none_is_plain_ps_over_all_images(ts_scene):
     r = wps(I, lay, weight="None")
     n_ps, _ = kernel.split(kernel.ls(I, lay.S))
     assert np.allclose(r.normals, n_ps, atol=1e-5)
-    assert np.allclose(r.weights, 0.5)
+    assert np.allclose(r.ring_weights, 0.5)
 
 
 def test_errors():
@@ -202,7 +202,7 @@ def test_object_mask_and_solve_delegation(ts_scene):
     from psbench.solve import solve
     I, lay, surf = ts_scene
     r = solve(I, lay, method="wps", weight="eZsourceZsurface", object_mask=surf.mask)
-    assert r.method == "wps" and r.weights.shape[0] == 2
+    assert r.method == "wps" and r.ring_weights.shape[0] == 2
     out = ~surf.mask
     assert np.allclose(r.normals[out], (0, 0, 1)) and (r.albedo[out] == 0).all()
     direct = wps(I, lay, object_mask=surf.mask)
@@ -214,7 +214,7 @@ def test_masked_rings(ts_scene):
     r = wps(I, lay, mask="Th", weight="e")
     assert r.mask == "Th"
     assert not r.valid.all()
-    assert np.allclose(r.weights.sum(0), 1.0, atol=1e-5)
+    assert np.allclose(r.ring_weights.sum(0), 1.0, atol=1e-5)
     assert np.isfinite(r.normals).all()
 
 
@@ -228,3 +228,17 @@ def test_residuals_match_explicit_computation(ts_scene):
         assert np.allclose(r.ring_residual[j], e, rtol=1e-3, atol=1e-5)
     res = np.sqrt(((I - kernel.lambert(r.normals * r.albedo[..., None], S)) ** 2).sum(0))
     assert np.allclose(r.residual, res, rtol=1e-3, atol=1e-4)
+
+
+def test_weights_per_observation_ring_weights_per_ring(ts_scene):
+    """One name per concept: ``weights`` (k, H, W) per observation (from the rings'
+    weighted solves) or None; ``ring_weights`` (rings, H, W)."""
+    I, lay, surf = ts_scene
+    plain = wps(I, lay)
+    assert plain.weights is None and plain.ring_weights.shape == (2,) + I.shape[1:]
+    w = wps(I, lay, mask="Th", weighted=True, object_mask=surf.mask)
+    assert w.weights.shape == I.shape and w.weights.dtype == np.float32
+    assert (w.weights[:, ~surf.mask] == 0).all() and (w.weights[:, surf.mask] > 0).all()
+    assert w.ring_weights.shape == (2,) + I.shape[1:]
+    assert set(w.thresholds) == {"ring0", "ring1"} and w.converged is True
+    assert "rings=2" in repr(w)

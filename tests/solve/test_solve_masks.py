@@ -6,8 +6,9 @@ from scipy import ndimage
 
 import psbench as ps
 from psbench.solve import kernel, solve
-from psbench.solve import masks as M
-from psbench.solve.api import _Completer
+from psbench.solve._engine import _Completer
+from psbench.solve.masks import ranges
+from psbench.solve.masks.th import th as th_mask
 
 
 def _dir(zen, pol):
@@ -301,8 +302,8 @@ def test_th_offset_literal_equal_when_min_is_zero(ts_semisphere):
 
     # with an ambient offset only the offset rule keeps the same mask (before Eq. 3.1)
     def th(img, offset):
-        rg = M.ranges(img, offset=offset)
-        return M.th(img, rg["lo"], rg["rng"], 0.06, 0.35)
+        rg = ranges(img, offset=offset)
+        return th_mask(img, rg["lo"], rg["rng"], 0.06, 0.35)
     base = th(sc.images, True)
     assert np.array_equal(base, th(sc.images + 0.3, True))
     assert not np.array_equal(base, th(sc.images + 0.3, False))

@@ -1,7 +1,5 @@
 """Public API of psbench.solve: Result, validation, thresholds, degenerate input,
 method delegation."""
-import sys
-import types
 import warnings
 
 import numpy as np
@@ -203,21 +201,30 @@ def test_threshold_overrides_used(scene):
 
 
 # ------------------------------------------------------------------- methods
-def test_wps_is_delegated(monkeypatch, scene):
+def test_wps_is_delegated(scene):
+    """solve(method="wps") hands its keywords to the registered "wps" method (replaced
+    here by a stand-in with the same options class)."""
+    from psbench import registry
+    from psbench.solve.base import Fit
     surf, lay, sc = scene
+    real = registry.get("methods", "wps")
     seen = {}
 
-    def fake(images, lights, **kw):
-        seen.update(kw, images=images, lights=lights)
-        return "wps-result"
+    def fake(problem, options):
+        seen.update(problem=problem, options=options)
+        return Fit(b=np.zeros(problem.images.shape[1:] + (3,), np.float32), info={"fake": 1})
 
-    mod = types.ModuleType("psbench.solve.wps")
-    mod.wps = fake
-    monkeypatch.setitem(sys.modules, "psbench.solve.wps", mod)
-    out = solve(sc.images, lay, method="wps", weight="eZsource", binary=True, seed=3)
-    assert out == "wps-result"
-    assert seen["weight"] == "eZsource" and seen["binary"] is True and seen["seed"] == 3
-    assert seen["lights"] is lay and seen["images"].dtype == np.float32
+    registry.register("methods", registry.Method("wps", fake, options=real.options,
+                                                 masked=False), replace=True)
+    try:
+        out = solve(sc.images, lay, method="wps", weight="eZsource", binary=True, seed=3)
+    finally:
+        registry.register("methods", real, replace=True)
+    assert registry.get("methods", "wps") is real
+    assert out.info["fake"] == 1 and out.method == "wps"
+    o, pr = seen["options"], seen["problem"]
+    assert o.weight == "eZsource" and o.binary is True and pr.seed == 3
+    assert pr.lights is lay and pr.images.dtype == np.float32
 
 
 def test_weighted_options(scene):

@@ -1,0 +1,66 @@
+"""Sh: shadow mask (Section 3.3.2.5), a global normal mask.
+
+The current normals are integrated into heights (``integrate_method``); each light's
+shadow map of those heights gives the cast shadows (``sh_bias``). Section 3.3.2.5 says
+Sh "works on both" cast and self shadows, so s.n <= 0 is masked too.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...registry import Mask
+from .. import kernel
+from .ss import ss
+
+__all__ = ["sh_maps", "sh", "apply", "MASK"]
+
+
+def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson"):
+    """Cast-shadow maps of the heights integrated from ``normals``.
+
+    Parameters
+    ----------
+    normals : (H, W, 3) float32
+    directions : (k, 3)
+    object_mask : (H, W) bool, optional
+
+    Returns
+    -------
+    occluded : (k, H, W) bool
+        True where light i is blocked by another part of the integrated surface.
+    height : (H, W) float32
+    """
+    from ...integrate import integrate
+    from ...shadowmap import shadow_map
+
+    height = integrate(normals, object_mask, method=method)
+    kw = {} if bias is None else {"bias": bias}
+    occ = shadow_map(height, np.asarray(directions, dtype=np.float64), mask=object_mask, **kw)
+    return np.asarray(occ, dtype=bool), height
+
+
+def sh(normals, b, S, directions, object_mask=None, **kw):
+    """Valid where not cast-shadowed and s . n > 0.
+
+    Returns
+    -------
+    valid : (k, H, W) bool
+    height : (H, W) float32
+    """
+    occ, height = sh_maps(normals, directions, object_mask, **kw)
+    valid = ss(b, S)
+    valid &= ~occ
+    return valid, height
+
+
+def apply(images, b, ctx):
+    """Global normal stage: integrates the current normals (full (H, W, 3) arrays)."""
+    n, _ = kernel.split(b)
+    o = ctx.options
+    valid, _ = sh(n, b, ctx.S32, ctx.directions, ctx.region, bias=o.sh_bias,
+                  method=o.integrate_method)
+    return valid
+
+
+MASK = Mask("Sh", "normal", apply, local=False,
+            help="cast and self shadows from shadow maps of the integrated normals (Section 3.3.2.5)")
