@@ -29,7 +29,7 @@ TARGETS = {512: 0.5, 2048: 8.0}
 def _surface(size):
     try:
         from psbench.surfaces import make_surface
-        return make_surface("sombrero", size), "sombrero"
+        return make_surface("sombrero", size=size), "sombrero"
     except Exception:  # surfaces module missing: sombrero-like height inline
         from types import SimpleNamespace
         r = np.arange(size)

@@ -101,17 +101,17 @@ def bench(size=512, runs=5, surface="sombrero"):
         if lights not in scenes:
             scenes[lights] = _scene(surface, size, lights)
         surf, lay, sc = scenes[lights]
-        solve(sc.images, lay, mask=mask, object_mask=surf.mask)  # warm-up (imports, caches)
+        solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)  # warm-up (imports, caches)
         ts, cpu = [], []
         for _ in range(runs):
             c0 = time.process_time()
-            res = solve(sc.images, lay, mask=mask, object_mask=surf.mask)
+            res = solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)
             cpu.append(time.process_time() - c0)
             ts.append(res.timings["total"])
         med = float(np.median(ts))
         if mask == "None":
             base[lights] = med
-        ne = ps.normal_error(res.normals, surf.normals, surf.mask)
+        ne = ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask)
         rows.append((mask, lights, med, med / base[lights], target, matlab, ne, res.iterations,
                      float(np.min(ts)), float(np.median(cpu))))
     print(f"\npsbench.solve at {size}x{size}, surface {surface}, TS with shadows, "
@@ -135,7 +135,7 @@ def bench_big(size=2048, surface="sombrero", lights="30x8+60x8"):
     with tempfile.TemporaryDirectory() as d:
         fi, fm = os.path.join(d, "images.npy"), os.path.join(d, "mask.npy")
         np.save(fi, sc.images)
-        np.save(fm, surf.mask)
+        np.save(fm, surf.object_mask)
         del sc
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", CHILD, fi, fm, lights], check=True,

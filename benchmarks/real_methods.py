@@ -72,9 +72,9 @@ def measure(ds, images, lights, fn, repeat=1):
         t = time.perf_counter()
         res = fn()
         times.append(time.perf_counter() - t)
-    st = normal_error_stats(res.normals, ds.normals, ds.mask)
-    ie = intensity_error(images, res, lights, norm="l2", mask=ds.mask)
-    dr = dynamic_range(images, ds.mask)
+    st = normal_error_stats(res.normals, ds.normals, object_mask=ds.object_mask)
+    ie = intensity_error(images, res, lights, norm="l2", object_mask=ds.object_mask)
+    dr = dynamic_range(images, object_mask=ds.object_mask)
     return dict(ne=st["mean"], ne_med=st["median"], ie=ie, ie_rel=100 * ie / dr if dr > 0 else np.nan,
                 t=float(np.median(times)), it=getattr(res, "iterations", 0))
 
@@ -96,7 +96,7 @@ def study(ds, label, *, methods, scopes, repeat, rings, out):
         print(s, file=out, flush=True)
 
     k, H, W = ds.images.shape
-    p(f"\n### {label}: {k} images, {W}x{H}, {int(ds.mask.sum())} mask pixels\n")
+    p(f"\n### {label}: {k} images, {W}x{H}, {int(ds.object_mask.sum())} mask pixels\n")
     if methods:
         p(HEAD)
     for m in methods:
@@ -104,7 +104,7 @@ def study(ds, label, *, methods, scopes, repeat, rings, out):
             kw = {} if scope == "-" else {"th_scope": scope}
             try:
                 r = measure(ds, ds.images, ds.lights,
-                            lambda: solve(ds.images, ds.lights, mask=m, object_mask=ds.mask, **kw),
+                            lambda: solve(ds.images, ds.lights, mask=m, object_mask=ds.object_mask, **kw),
                             repeat)
                 p(row(m, scope, r))
             except Exception as e:  # report and go on
@@ -120,19 +120,19 @@ def study(ds, label, *, methods, scopes, repeat, rings, out):
     p(f"\nWPS on two rings picked for {rings}: image numbers {nums}; "
       f"ring zeniths {zr[0][0]:.1f}-{zr[0][1]:.1f} and {zr[1][0]:.1f}-{zr[1][1]:.1f} deg\n")
     p(HEAD)
-    r = measure(ds, imgs, lay, lambda: solve(imgs, lay, mask="None", object_mask=ds.mask), repeat)
+    r = measure(ds, imgs, lay, lambda: solve(imgs, lay, mask="None", object_mask=ds.object_mask), repeat)
     p(row("PS (16 lights)", "-", r))
     for w in WPS_WEIGHTS:
         try:
             r = measure(ds, imgs, lay, lambda: solve(imgs, lay, method="wps", weight=w,
-                                                     object_mask=ds.mask), repeat)
+                                                     object_mask=ds.object_mask), repeat)
             p(row(f"WPS {w}", "-", r))
         except Exception as e:
             p(f"| WPS {w:<12} | -       | failed: {type(e).__name__}: {e} |")
     for w in ("e", "eZsourceZsurface"):
         try:
             r = measure(ds, imgs, lay, lambda: solve(imgs, lay, method="wps", weight=w, mask="Th",
-                                                     object_mask=ds.mask), repeat)
+                                                     object_mask=ds.object_mask), repeat)
             p(row(f"WPS-Th {w}", "image", r))
         except Exception as e:
             p(f"| WPS-Th {w} | failed: {type(e).__name__}: {e} |")

@@ -46,9 +46,9 @@ def run(lights, masks, size, noise, surfaces=SURFACES, **kw):
         lay = ps.layout(lights)
         sc = ps.render(surf, lay, model="ts", shadows=True, noise=noise, seed=0)
         for m in masks:
-            res = solve(sc.images, lay, mask=m, object_mask=surf.mask, **kw)
-            ne = ps.normal_error(res.normals, surf.normals, surf.mask)
-            qf = ps.quality_factor(~res.valid, sc, surf.mask)
+            res = solve(sc.images, lay, mask=m, object_mask=surf.object_mask, **kw)
+            ne = ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask)
+            qf = ps.quality_factor(~res.valid, sc, object_mask=surf.object_mask)
             d = out[m]
             d["ne"].append(ne)
             d["t"].append(res.timings["total"])

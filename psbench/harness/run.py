@@ -97,7 +97,7 @@ class _Scene:
             self.images, self.lights = ds.images, ds.lights
             if p["lights"] is not None:
                 self.images, self.lights = select_lights(ds.images, ds.lights, p["lights"])
-            self.mask = ds.mask
+            self.mask = ds.object_mask
             self.normals = getattr(ds, "normals", None)
         else:
             from ..lights import layout
@@ -109,7 +109,7 @@ class _Scene:
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
                            seed=p["seed"], quantize=p["quantize"])
-            self.images, self.lights, self.mask = scene.images, lay, surf.mask
+            self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
         self._dr = None
@@ -119,7 +119,7 @@ class _Scene:
         if self._dr is None:
             from ..metrics import dynamic_range
 
-            self._dr = dynamic_range(self.images, self.mask)
+            self._dr = dynamic_range(self.images, object_mask=self.mask)
         return self._dr
 
 
@@ -193,20 +193,20 @@ def _solve_metrics(p, sc):
     t_solve = time.perf_counter() - t0
     row = dict(t_solve=t_solve, n_images=int(sc.images.shape[0]), size=int(sc.images.shape[1]))
     if sc.normals is not None:
-        st = normal_error_stats(res.normals, sc.normals, sc.mask)
+        st = normal_error_stats(res.normals, sc.normals, object_mask=sc.mask)
         row.update({f"ne_{k}": _f(v) for k, v in st.items()})
         if "ne_by_zenith" in p["extras"]:
-            row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, sc.mask))
+            row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, object_mask=sc.mask))
     for norm in ("l1", "l2", "linf"):
-        row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, mask=sc.mask))
+        row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, object_mask=sc.mask))
     w = getattr(res, "ring_weights", None)
     if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
-                                                mask=sc.mask, weights=w))
+                                                object_mask=sc.mask, weights=w))
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):
-        qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, sc.mask)
+        qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, object_mask=sc.mask)
         row.update(qf_hi=_f(qf["hi"]), qf_sh=_f(qf["sh"]), qf_total=_f(qf["total"]))
     return row
 

@@ -108,9 +108,9 @@ def test_options_reach_solve_and_the_row(monkeypatch):
     surf = psbench.make_surface("sombrero2", size=32)
     sc = psbench.render(surf, psbench.layout("45x8"), model="ts", noise=0.05, seed=0)
     ref = sys.modules["psbench.solve"].solve(sc.images, psbench.layout("45x8"),
-                                             mask="Th-Hi-Re-Sh", object_mask=surf.mask,
+                                             mask="Th-Hi-Re-Sh", object_mask=surf.object_mask,
                                              max_iter=1, iter_tol=0)
-    assert row["ne_mean"] == pytest.approx(normal_error(ref.normals, surf.normals, surf.mask),
+    assert row["ne_mean"] == pytest.approx(normal_error(ref.normals, surf.normals, object_mask=surf.object_mask),
                                            rel=1e-9)
     default = run.execute(params.normalize({"surface": "sombrero2", "size": 32,
                                             "mask": "Th-Hi-Re-Sh"}), sweep="x")

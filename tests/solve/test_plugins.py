@@ -83,15 +83,15 @@ def plugins():
 
 def test_runtime_mask_combines_with_builtins(scene, plugins):
     surf, lay, sc = scene
-    res = ps.solve(sc.images, lay, mask="Th-dark", object_mask=surf.mask, max_iter=0)
-    th = ps.solve(sc.images, lay, mask="Th", object_mask=surf.mask, max_iter=0)
+    res = ps.solve(sc.images, lay, mask="Th-dark", object_mask=surf.object_mask, max_iter=0)
+    th = ps.solve(sc.images, lay, mask="Th", object_mask=surf.object_mask, max_iter=0)
     assert res.mask == "Th-Dark"
     assert res.thresholds["t_dark"] == 0.1
     dr = np.mean([np.ptp(im) for im in sc.images])
     dark = sc.images >= np.float32(0.1 * dr)
     want = th.valid & dark
     ok = want.sum(0) >= 3  # elsewhere Eq. 3.1 completes to three observations
-    assert np.array_equal(res.valid[:, ok & surf.mask], want[:, ok & surf.mask])
+    assert np.array_equal(res.valid[:, ok & surf.object_mask], want[:, ok & surf.object_mask])
     assert not np.array_equal(res.valid, th.valid)
     # its threshold is overridable and validated like Table 5.2's
     more = ps.solve(sc.images, lay, mask="Dark", thresholds={"t_dark": 0.2}, max_iter=0)
@@ -103,20 +103,20 @@ def test_runtime_mask_combines_with_builtins(scene, plugins):
 
 def test_runtime_normal_mask_iterates(scene, plugins):
     surf, lay, sc = scene
-    res = ps.solve(sc.images, lay, mask="Far-Sh", object_mask=surf.mask, truth_normals=surf.normals)
+    res = ps.solve(sc.images, lay, mask="Far-Sh", object_mask=surf.object_mask, truth_normals=surf.normals)
     assert res.thresholds["t_far"] == pytest.approx(0.2 - 0.1 * 4 / 8)  # interpolated at k = 8
     assert res.info["changed"] and res.info["changed"][0] > 0
     assert len(res.info["ne"]) == res.iterations + 2
-    none = ps.solve(sc.images, lay, object_mask=surf.mask)
-    assert ps.normal_error(res.normals, surf.normals, surf.mask) < \
-        ps.normal_error(none.normals, surf.normals, surf.mask)
+    none = ps.solve(sc.images, lay, object_mask=surf.object_mask)
+    assert ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask) < \
+        ps.normal_error(none.normals, surf.normals, object_mask=surf.object_mask)
     assert resolve_thresholds(16)["t_far"] == pytest.approx(0.1)  # clamped
 
 
 def test_runtime_method_with_a_mask(scene, plugins):
     surf, lay, sc = scene
-    ref = ps.solve(sc.images, lay, mask="Sh", object_mask=surf.mask)
-    res = ps.solve(sc.images, lay, mask="Sh", method="mymethod", object_mask=surf.mask,
+    ref = ps.solve(sc.images, lay, mask="Sh", object_mask=surf.object_mask)
+    res = ps.solve(sc.images, lay, mask="Sh", method="mymethod", object_mask=surf.object_mask,
                    shrink=0.25)
     assert res.method == "mymethod" and res.mask == "Sh"
     assert np.array_equal(res.valid, ref.valid)  # the mask engine ran first
@@ -192,13 +192,13 @@ def test_entry_point_plugin(scene, entry_point_package):
     surf, lay, sc = scene
     assert "Bright" in registry.names("masks") and "half" in registry.names("methods")
     assert "Th" in registry.names("masks")  # built-ins still there
-    res = ps.solve(sc.images, lay, mask="Th-Bright", method="half", object_mask=surf.mask)
-    ref = ps.solve(sc.images, lay, mask="Th-Bright", object_mask=surf.mask)
+    res = ps.solve(sc.images, lay, mask="Th-Bright", method="half", object_mask=surf.object_mask)
+    ref = ps.solve(sc.images, lay, mask="Th-Bright", object_mask=surf.object_mask)
     assert res.mask == "Th-Bright" and res.method == "half"
     assert res.thresholds["t_bright"] == 0.05
     np.testing.assert_allclose(res.albedo, 0.5 * ref.albedo, rtol=1e-5, atol=1e-7)
-    alone = ps.solve(sc.images, lay, mask="Bright", object_mask=surf.mask)
-    assert (~alone.valid[:, surf.mask]).sum() > 0 and alone.iterations >= 1
+    alone = ps.solve(sc.images, lay, mask="Bright", object_mask=surf.object_mask)
+    assert (~alone.valid[:, surf.object_mask]).sum() > 0 and alone.iterations >= 1
 
 
 def test_entry_point_plugin_gone_after_reload():

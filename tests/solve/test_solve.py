@@ -20,7 +20,7 @@ def scene():
 
 def test_result_fields(scene):
     surf, lay, sc = scene
-    res = solve(sc.images, lay, mask="Th-Hi-Re-Sh", object_mask=surf.mask, want_height=True)
+    res = solve(sc.images, lay, mask="Th-Hi-Re-Sh", object_mask=surf.object_mask, want_height=True)
     assert isinstance(res, Result)
     k, H, W = sc.images.shape
     assert res.normals.shape == (H, W, 3) and res.normals.dtype == np.float32
@@ -35,7 +35,7 @@ def test_result_fields(scene):
     assert res.thresholds["t_Re"] == 22.5
     for a in (res.normals, res.albedo, res.residual, res.height):
         assert np.isfinite(a).all()
-    out = ~surf.mask
+    out = ~surf.object_mask
     assert np.allclose(res.normals[out], (0, 0, 1)) and (res.albedo[out] == 0).all()
     assert res.valid[:, out].all()
     assert np.allclose(np.linalg.norm(res.normals, axis=-1), 1, atol=1e-5)
@@ -251,10 +251,10 @@ def test_cj_result_valid():
 def test_unmasked_residual_is_lazy_but_exact():
     import psbench as ps
 
-    surf = ps.make_surface("sombrero2", 48)
+    surf = ps.make_surface("sombrero2", size=48)
     lay = ps.layout("30x4+60x4")
     sc = ps.render(surf, lay, noise=0.05, seed=1)
-    res = ps.solve(sc.images, lay, mask="None", object_mask=surf.mask)
+    res = ps.solve(sc.images, lay, mask="None", object_mask=surf.object_mask)
     assert "residual" not in res.timings  # not computed during the solve
     want = np.sqrt(((sc.images - np.einsum("kc,hwc->khw", lay.S, res.b)) ** 2).sum(0))
     np.testing.assert_allclose(res.residual, want, rtol=1e-4, atol=1e-5)

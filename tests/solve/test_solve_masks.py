@@ -85,19 +85,19 @@ def test_sh_flags_cast_and_self_shadows():
     surf = ps.make_surface("spheres", size=64)
     lay = ps.layout("45x8")
     sc = ps.render(surf, lay, model="lambert")
-    res = solve(sc.images, lay, mask="Sh", object_mask=surf.mask)
-    none = solve(sc.images, lay, object_mask=surf.mask)
+    res = solve(sc.images, lay, mask="Sh", object_mask=surf.object_mask)
+    none = solve(sc.images, lay, object_mask=surf.object_mask)
     flagged = ~res.valid
-    truth = sc.shadow & surf.mask
+    truth = sc.shadow & surf.object_mask
     assert sc.cast_shadow.any()
-    qf = ps.quality_factor(flagged, sc, surf.mask)
+    qf = ps.quality_factor(flagged, sc, object_mask=surf.object_mask)
     assert qf["sh"] > 0.8
     # disagreements only within 2 px of the true shadow boundaries
     band = np.stack([ndimage.binary_dilation(t ^ ndimage.binary_erosion(t), iterations=2)
                      for t in truth])
     assert ((flagged ^ truth) & ~band).sum() < 0.01 * truth.sum()
-    assert ps.normal_error(res.normals, surf.normals, surf.mask) < \
-        0.5 * ps.normal_error(none.normals, surf.normals, surf.mask)
+    assert ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask) < \
+        0.5 * ps.normal_error(none.normals, surf.normals, object_mask=surf.object_mask)
 
 
 def test_sh_masks_self_shadows_too():
@@ -159,7 +159,7 @@ def test_noiseless_lambert_exact_4(lambert4, mask):
 @pytest.mark.parametrize("scope", ["image", "object", "robust", "pixel"])
 def test_noiseless_lambert_exact_scopes(lambert8, scope):
     surf, lay, sc = lambert8
-    res = solve(sc.images, lay, mask="Th-Hi-CS", th_scope=scope, object_mask=surf.mask)
+    res = solve(sc.images, lay, mask="Th-Hi-CS", th_scope=scope, object_mask=surf.object_mask)
     assert ps.normal_error(res.normals, surf.normals) < 0.01
     assert res.info["th_scope"] == scope
 
@@ -213,7 +213,7 @@ def test_every_pixel_keeps_three_observations():
     lay = ps.layout("45x8")
     sc = ps.render(surf, lay)
     for mask in ["Th", "Th-Hi-Re-Sh", "xNL-Hi-Re-Sh", "RA-Th"]:
-        res = solve(sc.images, lay, mask=mask, object_mask=surf.mask)
+        res = solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)
         assert (res.valid.sum(axis=0) >= 3).all(), mask
         assert np.isfinite(res.normals).all()
 
@@ -243,55 +243,55 @@ def _boundary_energy(normals, valid, region):
 
 def test_weighted_th_removes_false_edges(ts_semisphere):
     surf, lay, sc = ts_semisphere
-    binary = solve(sc.images, lay, mask="Th", object_mask=surf.mask)
-    weighted = solve(sc.images, lay, mask="Th", object_mask=surf.mask, weighted=True)
+    binary = solve(sc.images, lay, mask="Th", object_mask=surf.object_mask)
+    weighted = solve(sc.images, lay, mask="Th", object_mask=surf.object_mask, weighted=True)
     assert np.array_equal(weighted.valid, binary.valid)
     assert weighted.weights is not None and weighted.weights.dtype == np.float32
-    region = ndimage.binary_erosion(surf.mask, iterations=3)
+    region = ndimage.binary_erosion(surf.object_mask, iterations=3)
     e_bin = _boundary_energy(binary.normals, binary.valid, region)
     e_w = _boundary_energy(weighted.normals, binary.valid, region)
     e_true = _boundary_energy(surf.normals, binary.valid, region)
     assert e_w < 0.5 * e_bin
     assert e_w < 2.0 * e_true
-    ne_b = ps.normal_error(binary.normals, surf.normals, surf.mask)
-    ne_w = ps.normal_error(weighted.normals, surf.normals, surf.mask)
+    ne_b = ps.normal_error(binary.normals, surf.normals, object_mask=surf.object_mask)
+    ne_w = ps.normal_error(weighted.normals, surf.normals, object_mask=surf.object_mask)
     assert ne_w <= ne_b + 0.2
 
 
 def test_fwlse_converges_and_beats_none(ts_semisphere):
     surf, lay, sc = ts_semisphere
-    none = solve(sc.images, lay, object_mask=surf.mask)
-    res = solve(sc.images, lay, method="fwlse", object_mask=surf.mask, max_iter=30)
+    none = solve(sc.images, lay, object_mask=surf.object_mask)
+    res = solve(sc.images, lay, method="fwlse", object_mask=surf.object_mask, max_iter=30)
     assert res.info["converged"] is True
     assert 1 <= res.iterations < 30
-    assert ps.normal_error(res.normals, surf.normals, surf.mask) < \
-        ps.normal_error(none.normals, surf.normals, surf.mask)
+    assert ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask) < \
+        ps.normal_error(none.normals, surf.normals, object_mask=surf.object_mask)
     assert res.weights.shape == sc.images.shape
 
 
 @pytest.mark.parametrize("mask", ["Th", "Th-Hi-Re-Sh", "Hi-Re-SS-Sh", "xNL-Hi-Re-Sh", "RA"])
 def test_masks_beat_none_on_ts(ts_semisphere, mask):
     surf, lay, sc = ts_semisphere
-    none = solve(sc.images, lay, object_mask=surf.mask)
-    res = solve(sc.images, lay, mask=mask, object_mask=surf.mask)
-    assert ps.normal_error(res.normals, surf.normals, surf.mask) < \
-        ps.normal_error(none.normals, surf.normals, surf.mask)
+    none = solve(sc.images, lay, object_mask=surf.object_mask)
+    res = solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)
+    assert ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask) < \
+        ps.normal_error(none.normals, surf.normals, object_mask=surf.object_mask)
 
 
 def test_iteration_stops_when_masks_stop_changing(ts_semisphere):
     surf, lay, sc = ts_semisphere
-    res = solve(sc.images, lay, mask="Hi-Re", object_mask=surf.mask, max_iter=50,
+    res = solve(sc.images, lay, mask="Hi-Re", object_mask=surf.object_mask, max_iter=50,
                 truth_normals=surf.normals, iter_tol=0)
     assert res.info["converged"] in (True, "cycle")
     assert res.iterations < 50
     assert len(res.info["ne"]) == res.iterations + 2  # first solve, rounds, final
-    one = solve(sc.images, lay, mask="Hi-Re", object_mask=surf.mask, max_iter=1)
+    one = solve(sc.images, lay, mask="Hi-Re", object_mask=surf.object_mask, max_iter=1)
     assert one.iterations <= 1
     # the default tolerance stops once a round changes <= 0.1 % of the object pixels
-    tol = solve(sc.images, lay, mask="Hi-Re-Sh", object_mask=surf.mask)
+    tol = solve(sc.images, lay, mask="Hi-Re-Sh", object_mask=surf.object_mask)
     assert tol.info["converged"] in (True, "cycle", "tol")
     last = tol.info["changed"][-1]
-    assert last == 0 or last <= 1e-3 * surf.mask.sum() or tol.info["converged"] == "cycle"
+    assert last == 0 or last <= 1e-3 * surf.object_mask.sum() or tol.info["converged"] == "cycle"
 
 
 def test_th_offset_literal_equal_when_min_is_zero(ts_semisphere):

@@ -130,7 +130,7 @@ def test_ezsurface_favours_high_ring_on_smooth_and_low_ring_on_steep():
 
 def test_oracle_never_worse_than_any_weighting(ts_scene):
     I, lay, surf = ts_scene
-    m = surf.mask
+    m = surf.object_mask
     orc = wps(I, lay, weight="oracle", truth_normals=surf.normals)
     e_or = normal_error_map(orc.normals, surf.normals)
     for weight in WEIGHTED:
@@ -138,7 +138,7 @@ def test_oracle_never_worse_than_any_weighting(ts_scene):
             r = wps(I, lay, weight=weight, binary=binary)
             e = normal_error_map(r.normals, surf.normals)
             assert (e_or <= e + 1e-3).all(), (weight, binary)
-            assert normal_error(orc.normals, surf.normals, m) <= normal_error(r.normals, surf.normals, m)
+            assert normal_error(orc.normals, surf.normals, object_mask=m) <= normal_error(r.normals, surf.normals, object_mask=m)
     for j in range(2):
         assert (e_or <= normal_error_map(orc.ring_normals[j], surf.normals) + 1e-3).all()
     orb = wps(I, lay, weight="oracle", binary=True, truth_normals=surf.normals)
@@ -201,11 +201,11 @@ def test_errors():
 def test_object_mask_and_solve_delegation(ts_scene):
     from psbench.solve import solve
     I, lay, surf = ts_scene
-    r = solve(I, lay, method="wps", weight="eZsourceZsurface", object_mask=surf.mask)
+    r = solve(I, lay, method="wps", weight="eZsourceZsurface", object_mask=surf.object_mask)
     assert r.method == "wps" and r.ring_weights.shape[0] == 2
-    out = ~surf.mask
+    out = ~surf.object_mask
     assert np.allclose(r.normals[out], (0, 0, 1)) and (r.albedo[out] == 0).all()
-    direct = wps(I, lay, object_mask=surf.mask)
+    direct = wps(I, lay, object_mask=surf.object_mask)
     assert np.allclose(direct.normals, r.normals)
 
 
@@ -236,9 +236,9 @@ def test_weights_per_observation_ring_weights_per_ring(ts_scene):
     I, lay, surf = ts_scene
     plain = wps(I, lay)
     assert plain.weights is None and plain.ring_weights.shape == (2,) + I.shape[1:]
-    w = wps(I, lay, mask="Th", weighted=True, object_mask=surf.mask)
+    w = wps(I, lay, mask="Th", weighted=True, object_mask=surf.object_mask)
     assert w.weights.shape == I.shape and w.weights.dtype == np.float32
-    assert (w.weights[:, ~surf.mask] == 0).all() and (w.weights[:, surf.mask] > 0).all()
+    assert (w.weights[:, ~surf.object_mask] == 0).all() and (w.weights[:, surf.object_mask] > 0).all()
     assert w.ring_weights.shape == (2,) + I.shape[1:]
     assert set(w.thresholds) == {"ring0", "ring1"} and w.converged is True
     assert "rings=2" in repr(w)

@@ -33,9 +33,9 @@ def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson
     from ...integrate import integrate
     from ...shadowmap import shadow_map
 
-    height = integrate(normals, object_mask, method=method)
+    height = integrate(normals, object_mask=object_mask, method=method)
     kw = {} if bias is None else {"bias": bias}
-    occ = shadow_map(height, np.asarray(directions, dtype=np.float64), mask=object_mask, **kw)
+    occ = shadow_map(height, np.asarray(directions, dtype=np.float64), object_mask=object_mask, **kw)
     return np.asarray(occ, dtype=bool), height
 
 
