@@ -128,13 +128,11 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"report, {old['runs']} runs): the store {results} holds no {scale}-scale runs; "
             f"run `psbench +experiment=NAME scale={scale}` first, or --force")
     if lost:
-        have = sum(1 for v in runs.values() if v)
         raise ReportRefused(
-            f"psbench-report: refusing to overwrite {where}: the store {results} holds no "
-            f"{scale}-scale runs of {_names(lost)} (the {scale}-scale report there has "
-            f"them; the store has {have} of its experiments); run "
-            f"`psbench +experiment=NAME scale={scale}` for them, use --out another folder, "
-            f"or --force")
+            f"psbench-report: refusing to overwrite {where}: its {scale}-scale report has runs "
+            f"of {len(lost)} experiment(s) the store {results} lacks at that scale "
+            f"({_names(lost)}); run `psbench +experiment=NAME scale={scale}` for them, use "
+            f"--out another folder, or --force")
 
 
 def manifest(scale, results, summaries, generated) -> str:
