@@ -65,7 +65,7 @@ def verdicts(agg, rows=None):
     return out
 
 
-TABLE_AXES = {"": ("mask", "noise (fraction of each image's range)")}
+TABLE_AXES = {"": ("mask", "noise level (% of each image's range)")}
 
 
 def column_label(part, column):

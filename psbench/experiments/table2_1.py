@@ -25,7 +25,7 @@ def cell_kind(part, column):
     return "cond"
 
 
-TABLE_AXES = {"": ("number of lights k", "source zenith of the ring (deg)")}
+TABLE_AXES = {"": ("lights", "source zenith of the ring (deg)")}
 
 
 def aggregate(rows):
