@@ -42,7 +42,7 @@ pre{background:#f6f8fa;border:1px solid #e3e6e8;padding:.6em .8em;overflow-x:aut
  font-size:13px;line-height:1.35}
 table{border-collapse:collapse;font-size:13.5px;margin:.6em 0 1em;
  font-variant-numeric:tabular-nums}
-p.cap{font-size:13px;color:#555;margin:.6em 0 .1em}
+p.cap{font-size:13px;color:#555;margin:.6em 0 .1em}th.wide{min-width:22em}
 td,th{border:1px solid #d4d7da;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#eef1f4;font-weight:600}thead tr:first-child th{background:#e2e7ec}
 td.num,th.num{text-align:right}th[colspan]{text-align:center}
@@ -196,8 +196,12 @@ def _numeric_columns(df) -> list[bool]:
     return out
 
 
+#: headers of long-text columns, kept wide enough to read
+_WIDE = {"claim", "claim (thesis)", "deviation", "error"}
+
+
 def _th(text, numeric, extra=""):
-    cls = " class='num'" if numeric else ""
+    cls = " class='num'" if numeric else " class='wide'" if str(text) in _WIDE else ""
     return f"<th{cls}{extra}>{inline_html(text)}</th>"
 
 
@@ -316,10 +320,12 @@ def to_html(blocks, title) -> str:
 
 def _verdicts_html(vs) -> str:
     rows = "".join(
-        f"<tr class='verdict'><td class='{_STATUS_CLASS.get(v.status, '')}'>{_html.escape(v.status)}"
-        f"</td><td>{inline_html(v.claim)}</td><td>{inline_html(v.detail)}</td></tr>" for v in vs)
-    return ("<table class='verdicts'><thead><tr><th>status</th><th>claim (thesis)</th>"
-            f"<th>psbench's numbers</th></tr></thead><tbody>{rows}</tbody></table>")
+        f"<tr class='verdict'><td class='{_STATUS_CLASS.get(v.status, '')}'>"
+        f"{_html.escape(v.status)}</td><td>{inline_html(v.claim)}</td>"
+        f"<td>{inline_html(v.detail)}</td></tr>" for v in vs)
+    return ("<table class='verdicts'><thead><tr><th>status</th>"
+            "<th class='wide'>claim (thesis)</th><th>psbench's numbers</th></tr></thead>"
+            f"<tbody>{rows}</tbody></table>")
 
 
 def write_page(out_dir, stem, blocks, title):
