@@ -58,7 +58,7 @@ def cell_kind(part, column):
 PART_TITLES = {"30x4+60x4": "IE as % of 2Z PS, 30x4+60x4 (8 images)",
                "30x8+60x8": "IE as % of 2Z PS, 30x8+60x8 (16 images)",
                "info": "IE definition of the WPS rows"}
-TABLE_AXES = {"*": ("WPS weight (None = 2Z PS)",
+TABLE_AXES = {"info": ("", ""), "*": ("WPS weight (None = 2Z PS)",
                     "the compared overall column, psbench's folders, the thesis's objects")}
 
 
