@@ -205,7 +205,9 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="psbench-report", description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="psbench-report",
+                                 description="Rebuild the thesis reports from the results "
+                                             "store alone (never solves).",
                                  epilog="Full-scale report in OUT/, ci-scale report in OUT/ci/; "
                                         "a report holding data is never replaced by an "
                                         "emptier one (exit 2) unless --force.")
@@ -213,7 +215,8 @@ def main(argv=None) -> int:
                     help="results store root (default $PSBENCH_RESULTS or results)")
     ap.add_argument("--out", default="reports", help="report root folder (default reports)")
     ap.add_argument("--scale", default="auto", choices=("auto",) + S.SCALES,
-                    help="which scale to report (default auto: every scale the store holds)")
+                    help="which scale to report (default auto: every scale the store holds; "
+                         "full goes to OUT, ci to OUT/ci)")
     ap.add_argument("--panels", action="store_true",
                     help="also render+solve one small scene set for the image panels")
     ap.add_argument("--force", action="store_true",
