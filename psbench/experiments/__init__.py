@@ -65,17 +65,20 @@ NOTES : str
     Deviations from the thesis and caveats (``""``: none beyond the image size).
 THESIS : dict
     The thesis's values of the same cells, ``{part: {row: {column: value}}}`` (``None``
-    for the thesis's "N/A"); the page shows psbench / thesis (difference).
+    for the thesis's "N/A"); the page shows psbench, thesis and their difference in
+    separate columns.
 verdicts(agg, rows) -> list of Verdict
     One :class:`psbench.report.verdicts.Verdict` per qualitative conclusion of the
     thesis, decided on the aggregate with the shared rules of
     :mod:`psbench.report.verdicts` (``verdict``, ``lowest``, ``nodata``, the
     ``NE_MARGIN`` below which a difference is INCONCLUSIVE). Must not raise on an empty
-    aggregate: missing data is INCONCLUSIVE.
+    aggregate: missing data is INCONCLUSIVE. List the thesis's main conclusion first:
+    the index shows each experiment's first verdict among its key findings.
 figures(agg) -> list of (str, matplotlib.figure.Figure)
     ``(file stem, figure)`` pairs; import :mod:`psbench.report.figures` (helpers
-    ``new_figure``, ``line``, ``finish``) inside the function, so that running the grid
-    never imports matplotlib.
+    ``new_figure``, ``line``, ``thesis``, ``finish``, ``figure_legend``) inside the
+    function, so that running the grid never imports matplotlib. Label the axes with
+    units and the thesis's values as such (``thesis(ax, x, y)``).
 GATED : bool
     Whether the CI gate runs it at ``scale=ci`` and checks its aggregate (default
     False; a gated experiment needs a baseline, ``python -m psbench.report.gate update
@@ -92,6 +95,10 @@ cell_kind(part, column) -> str
     ``percent``, ``time``, ``threshold``, ``ratio``; default ``ne``).
 HIDDEN_PARTS : set of str
     Parts too long for a page table (plotted and listed in ``data/<name>.csv`` only).
+cell_unit(part, column) -> str, column_label(part, column) -> str, TABLE_AXES, PART_TITLES
+    Presentation of the page's tables: a cell's unit (default from ``cell_kind``: deg,
+    %, s, ...), a column's header, ``{part: (rows title, columns title)}`` and ``{part:
+    heading}`` (see :mod:`psbench.report.present`).
 
 Example
 -------

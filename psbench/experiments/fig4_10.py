@@ -64,18 +64,24 @@ def verdicts(agg, rows=None):
     return out or [nodata("Highlight IE peaks near Z_surface = Z_source/2")]
 
 
+TABLE_AXES = {"*": ("IE component", "surface zenith, bin centre (deg)")}
+PART_TITLES = {z: f"Z_source = {z} deg" for z in ("30", "45", "60")}
+
+
 def figures(agg):
-    from psbench.report.figures import finish, line, new_figure
+    """IE components vs surface zenith, one panel per source zenith, with Z/2 and 90-Z."""
+    from psbench.report.figures import figure_legend, finish, line, new_figure
 
     if agg is None or agg.empty:
         return []
     parts = sorted(agg["part"].unique(), key=float)
-    fig, axes = new_figure(ncols=max(1, len(parts)), w=3.6)
+    fig, axes = new_figure(ncols=max(1, len(parts)), w=4.6, h=4.8)
     for ax, z in zip(axes, parts):
         for comp in ("highlight", "shadow", "total"):
             line(ax, agg, z, comp)
-        ax.axvline(float(z) / 2, color="k", ls=":", lw=0.8)
-        ax.axvline(90 - float(z), color="k", ls="--", lw=0.8)
-        finish(ax, "surface zenith (deg)", "IE", f"Z_source {z} (: Z/2, -- 90-Z)")
-    fig.tight_layout()
+        ax.axvline(float(z) / 2, color="k", ls=":", lw=1.5, label="Z_source / 2")
+        ax.axvline(90 - float(z), color="k", ls="--", lw=1.5, label="90 - Z_source")
+        finish(ax, "surface zenith (deg)", "IE (% of image range)", f"Z_source = {z} deg",
+               legend=False)
+    figure_legend(fig, ncol=5)
     return [("fig4_10", fig)]

@@ -47,13 +47,23 @@ def verdicts(agg, rows=None):
     return out
 
 
+TABLE_AXES = {"": ("images (Di: diffuse; Hi-Sh: highlights + shadows)", "")}
+
+
+def column_label(part, column):
+    return f"{column} images"
+
+
 def figures(agg):
-    from psbench.report.figures import finish, line, new_figure
+    """NE vs image count, Di and Hi-Sh, with the two values the thesis quotes."""
+    from psbench.report.figures import finish, line, new_figure, thesis
 
     fig, (ax,) = new_figure()
     for lab in ("Di", "Hi-Sh"):
-        line(ax, agg, "", lab)
-        th = THESIS[""][lab]
-        ax.plot([int(k) for k in th], list(th.values()), "kx", ms=6)
-    finish(ax, "image count n_i", "NE (deg)", "NE vs n_i, 45 deg ring (x = thesis)")
+        line(ax, agg, "", lab, label=f"psbench {lab}")
+    xs = [int(k) for lab in ("Di", "Hi-Sh") for k in THESIS[""][lab]]
+    ys = [v for lab in ("Di", "Hi-Sh") for v in THESIS[""][lab].values()]
+    thesis(ax, xs, ys, label="thesis (quoted in the text)")
+    finish(ax, "image count n_i (45-degree ring)", "mean NE (deg)",
+           "NE vs image count, 5 % noise", loc="center right")
     return [("fig4_3", fig)]

@@ -11,7 +11,7 @@ NOTES = ""
 GATED = False
 
 # Value quoted in the text: the optimal source zenith.
-THESIS = {"": {"optimum_zenith": {"all": 45.0}}}
+THESIS = {"quoted": {"optimum_zenith": {"all": 45.0}}}
 
 
 def _records(df):
@@ -44,11 +44,23 @@ def verdicts(agg, rows=None):
                     ", ".join(f"n={k}: {num(v, 0)} deg" for k, v in opts.items()))]
 
 
+TABLE_AXES = {"": ("images", "source zenith (deg)"), "quoted": ("quoted value", "")}
+PART_TITLES = {"": "NE (deg) per image count and source zenith",
+               "quoted": "Value quoted in the thesis's text"}
+
+
+def column_label(part, column):
+    return "all image counts" if column == "all" else column
+
+
 def figures(agg):
+    """NE vs source zenith per image count; the thesis's optimum as a dashed line."""
     from psbench.report.figures import finish, line, new_figure, row_names
 
     fig, (ax,) = new_figure()
     for n in sorted(row_names(agg), key=float):
         line(ax, agg, "", n, label=f"{n} images")
-    finish(ax, "source zenith (deg)", "NE (deg)", "Diffuse images, 5 % noise")
+    ax.axvline(THESIS["quoted"]["optimum_zenith"]["all"], color="k", ls="--", lw=1.5,
+               label="thesis: optimum at 45 deg")
+    finish(ax, "source zenith (deg)", "mean NE (deg)", "Diffuse images, 5 % noise")
     return [("fig4_4", fig)]

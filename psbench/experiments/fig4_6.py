@@ -56,13 +56,17 @@ def verdicts(agg, rows=None):
     return out
 
 
-def figures(agg):
-    from psbench.report.figures import finish, line, new_figure
+TABLE_AXES = {"*": ("IE component", "source zenith (deg)")}
 
-    fig, axes = new_figure(ncols=3, w=3.6)
+
+def figures(agg):
+    """IE components vs source zenith, one panel per sombrero."""
+    from psbench.report.figures import figure_legend, finish, line, new_figure
+
+    fig, axes = new_figure(ncols=3, w=4.6, h=4.8)
     for ax, s in zip(axes, ("sombrero1", "sombrero2", "sombrero3")):
         for comp in ("highlight", "shadow", "total"):
             line(ax, agg, s, comp)
-        finish(ax, "source zenith (deg)", "IE", s)
-    fig.tight_layout()
+        finish(ax, "source zenith (deg)", "IE (% of image range)", s, legend=False)
+    figure_legend(fig)
     return [("fig4_6", fig)]

@@ -11,7 +11,7 @@ NOTES = ""
 GATED = False
 
 # Values quoted in the text: optimal source zeniths.
-THESIS = {"": {"optimum_zenith_HiSh": {"sombrero1": 70.0, "sombrero3": 45.0},
+THESIS = {"quoted": {"optimum_zenith_HiSh": {"sombrero1": 70.0, "sombrero3": 45.0},
                "optimum_zenith_Di": {"sombrero1": 45.0, "sombrero3": 45.0}}}
 
 
@@ -65,13 +65,24 @@ def verdicts(agg, rows=None):
     return out
 
 
-def figures(agg):
-    from psbench.report.figures import finish, line, new_figure
+TABLE_AXES = {"*": ("images", "source zenith (deg)"), "quoted": ("quoted value", "surface")}
+PART_TITLES = {"quoted": "Values quoted in the thesis's text",
+               **{s: f"NE (deg) of {s}" for s in ("sombrero1", "sombrero2", "sombrero3")}}
 
-    fig, axes = new_figure(ncols=3, w=3.6)
+
+def figures(agg):
+    """NE vs source zenith per sombrero, Di vs Hi-Sh; the optima the thesis quotes as
+    dashed lines."""
+    from psbench.report.figures import figure_legend, finish, line, new_figure
+
+    fig, axes = new_figure(ncols=3, w=4.6, h=4.8)
     for ax, s in zip(axes, ("sombrero1", "sombrero2", "sombrero3")):
         for lab in ("Di", "Hi-Sh"):
             line(ax, agg, s, lab)
-        finish(ax, "source zenith (deg)", "NE (deg)", s)
-    fig.tight_layout()
+            z = THESIS["quoted"][f"optimum_zenith_{lab.replace('-', '')}"].get(s)
+            if z is not None:
+                ax.axvline(z, color=ax.lines[-1].get_color() if ax.lines else "k", ls="--",
+                           lw=1.5, label=f"thesis: optimum for {lab} (sombrero1, sombrero3)")
+        finish(ax, "source zenith (deg)", "mean NE (deg)", s, legend=False)
+    figure_legend(fig)
     return [("fig4_7", fig)]

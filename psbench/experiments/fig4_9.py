@@ -13,7 +13,7 @@ NOTES = ""
 GATED = False
 
 # Value quoted in the text: the largest surface zenith of sombrero2.
-THESIS = {"": {"max_surface_zenith": {"sombrero2": 66.0}}}
+THESIS = {"quoted": {"max_surface_zenith": {"sombrero2": 66.0}}}
 
 
 def _records(df):
@@ -58,11 +58,21 @@ def verdicts(agg, rows=None):
     return out
 
 
+TABLE_AXES = {"": ("source zenith (deg)", "surface zenith, bin centre (deg)"),
+              "quoted": ("quoted value", "")}
+PART_TITLES = {"": "NE (deg) per source zenith and surface zenith",
+               "quoted": "Value quoted in the thesis's text"}
+
+
 def figures(agg):
+    """NE vs surface zenith per source zenith; the largest surface zenith of sombrero2
+    the thesis quotes as a dashed line."""
     from psbench.report.figures import finish, line, new_figure, row_names
 
     fig, (ax,) = new_figure()
     for z in sorted(row_names(agg), key=float):
-        line(ax, agg, "", z, label=f"Z_source {z}")
-    finish(ax, "surface zenith (deg)", "mean NE (deg)", "sombrero2, 8 lights")
+        line(ax, agg, "", z, label=f"Z_source {z} deg")
+    ax.axvline(THESIS["quoted"]["max_surface_zenith"]["sombrero2"], color="k", ls="--", lw=1.5,
+               label="thesis: largest surface zenith, 66 deg")
+    finish(ax, "surface zenith (deg)", "mean NE (deg)", "sombrero2, 8 lights, 5 % noise")
     return [("fig4_9", fig)]

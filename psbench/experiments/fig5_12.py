@@ -65,11 +65,23 @@ def verdicts(agg, rows=None):
     return out
 
 
+TABLE_AXES = {"": ("mask", "noise level (% of each image's range)")}
+
+
+def column_label(part, column):
+    try:
+        return f"noise {100 * float(column):g} %"
+    except ValueError:
+        return column
+
+
 def figures(agg):
+    """NE vs noise level per mask family."""
     from psbench.report.figures import finish, line, new_figure, row_names
 
     fig, (ax,) = new_figure()
     for f in row_names(agg):
-        line(ax, agg, "", f)
-    finish(ax, "noise (fraction of dynamic range)", "NE (deg)", "NE vs noise")
+        line(ax, agg, "", f, scale=100.0)
+    finish(ax, "noise (% of each image's range)", "mean NE (deg)",
+           "NE vs noise, 45x8, five surfaces")
     return [("fig5_12", fig)]

@@ -67,11 +67,20 @@ def verdicts(agg, rows=None):
     return out
 
 
+TABLE_AXES = {"": ("mask", "")}
+
+
+def column_label(part, column):
+    return f"{column} images"
+
+
 def figures(agg):
+    """NE vs image count per mask family."""
     from psbench.report.figures import finish, line, new_figure, row_names
 
     fig, (ax,) = new_figure()
     for f in row_names(agg):
         line(ax, agg, "", f)
-    finish(ax, "light count", "NE (deg)", "NE vs light count")
+    finish(ax, "image count n_i (45-degree ring)", "mean NE (deg)",
+           "NE vs image count, five surfaces, noise 0/10/20 %")
     return [("fig5_13", fig)]

@@ -49,11 +49,20 @@ def verdicts(agg, rows=None):
     return out
 
 
+TABLE_AXES = {"": ("noise (fraction of each image's range)", "")}
+
+
+def column_label(part, column):
+    return f"{column} images"
+
+
 def figures(agg):
+    """NE of NL / xNL vs image count per noise level."""
     from psbench.report.figures import finish, line, new_figure, row_names
 
     fig, (ax,) = new_figure()
     for nz in sorted(row_names(agg), key=float):
         line(ax, agg, "", nz, label=f"noise {float(nz) * 100:g} %")
-    finish(ax, "light count", "NE (deg)", "NL / xNL")
+    finish(ax, "image count n_i (45-degree ring)", "mean NE (deg)",
+           "NL (4 images) / xNL (6-12 images), five surfaces")
     return [("fig5_14", fig)]

@@ -25,6 +25,9 @@ def cell_kind(part, column):
     return "cond"
 
 
+TABLE_AXES = {"": ("lights", "source zenith of the ring (deg)")}
+
+
 def aggregate(rows):
     """Mean cond(S) per image count (row) and zenith (column)."""
     recs = []

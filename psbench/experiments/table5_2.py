@@ -22,7 +22,7 @@ GATED = False
 HIDDEN_PARTS = {"qf", "re_ne"}
 
 # Tuned thresholds per image count (t_Re = min(z, (90-z)/2, p) is Eq. 5.1).
-THESIS = {"": {
+THESIS = {"optimum": {
     "k_low": {"4": 0.02, "6": 0.06, "8": 0.06, "12": 0.08},
     "k_up": {"4": 0.35, "6": 0.35, "8": 0.35, "12": 0.35},
     "k_Hi": {"4": 0.03, "6": 0.04, "8": 0.05, "12": 0.06},
@@ -96,7 +96,7 @@ def aggregate(rows):
 def verdicts(agg, rows=None):
     """One verdict per conclusion the thesis draws from this experiment."""
     out = []
-    th = THESIS[""]
+    th = THESIS["optimum"]
     opt = {} if agg is None or agg.empty else {
         (r, c): v for p, r, c, v in agg[agg["part"] == "optimum"][["part", "row", "column",
                                                                    "value"]].itertuples(
@@ -170,10 +170,28 @@ def verdicts(agg, rows=None):
     return out
 
 
+PART_TITLES = {"optimum": "QF-optimal thresholds per image count (Table 5.2)",
+               "re_optimum": "NE-optimal t_Re per source zenith, 8 lights (Fig. 5.11)"}
+TABLE_AXES = {"optimum": ("threshold (k_*, t_NL relative to the image range)", ""),
+              "re_optimum": ("threshold", "")}
+#: axis label of each swept threshold
+_AXIS = {"k_low": "k_low (fraction of image range)", "k_up": "k_up (fraction of image range)",
+         "k_Hi": "k_Hi (fraction of image range)", "k_CS": "k_CS (fraction of image range)",
+         "t_NL": "t_NL", "t_Re": "t_Re (deg)"}
+
+
+def cell_unit(part, column):
+    return "deg" if part in ("re_optimum", "re_ne") else ""
+
+
+def column_label(part, column):
+    return f"Z_source {column} deg" if part.startswith("re_") else f"{column} images"
+
+
 def figures(agg):
-    """Fig. 5.10 (QF vs each threshold, per noise level and per image count) and Fig. 5.11
-    (NE vs t_Re, with Eq. 5.1 dotted)."""
-    from psbench.report.figures import finish, new_figure, plt
+    """Fig. 5.10 (QF vs each threshold, per noise level and per image count; Table 5.2's
+    value for 8 images dashed) and Fig. 5.11 (NE vs t_Re, with Eq. 5.1 dotted)."""
+    from psbench.report.figures import finish, new_figure
 
     out = []
     q = agg[agg["part"] == "qf"]
@@ -184,18 +202,26 @@ def figures(agg):
                      noise=q["column"].str.split("/").str[1].astype(float))
         names = [n for n in ("k_low", "k_up", "t_NL", "t_Re", "k_Hi", "k_CS")
                  if n in set(q["name"])]
-        fig, axes = plt.subplots(len(names), 2, figsize=(7.5, 2.1 * len(names)), squeeze=False)
+        fig, axes = new_figure(ncols=2, nrows=len(names), w=6.2, h=3.1)
         for i, name in enumerate(names):
             g = q[q["name"] == name]
             for nz, gg in g.groupby("noise"):
                 m = gg.groupby("val")["value"].mean()
-                axes[i][0].plot(m.index, m.to_numpy(), marker="o", ms=3, label=f"noise {nz:g}")
+                axes[i][0].plot(m.index, m.to_numpy(), marker="o",
+                                label=f"noise {100 * nz:g} % (mean over image counts)")
             for n, gg in g[g["noise"] > 0].groupby("count"):
                 m = gg.groupby("val")["value"].mean()
-                axes[i][1].plot(m.index, m.to_numpy(), marker="o", ms=3, label=f"{int(n)} img")
+                axes[i][1].plot(m.index, m.to_numpy(), marker="s", ls="-",
+                                label=f"{int(n)} images (noise 10-20 %)")
+            th = THESIS["optimum"].get(name, {}).get("8")
             for j in (0, 1):
-                finish(axes[i][j], name, "QF", legend=(i == 0))
-        fig.tight_layout()
+                if th is not None:
+                    axes[i][j].axvline(th, color="k", ls="--", lw=1.5,
+                                       label="Table 5.2 value, 8 images")
+                finish(axes[i][j], _AXIS.get(name, name), "QF", legend=False)
+        for j, title in enumerate(("QF by noise level", "QF by image count")):
+            axes[0][j].legend(title=title, loc="lower center", bbox_to_anchor=(0.5, 1.02),
+                              ncol=2, fontsize=11)
         out.append(("fig5_10", fig))
     r = agg[agg["part"] == "re_ne"]
     if not r.empty:
@@ -204,8 +230,10 @@ def figures(agg):
             g = r[r["column"] == z]
             x = g["row"].astype(float).to_numpy()
             o = np.argsort(x)
-            drawn, = ax.plot(x[o], g["value"].to_numpy()[o], marker="o", ms=3, label=f"Z {z}")
-            ax.axvline(t_re_formula(float(z), 8), color=drawn.get_color(), ls=":", lw=0.8)
-        finish(ax, "t_Re (deg)", "NE (deg)", "NE vs t_Re, 8 lights (: Eq. 5.1)")
+            drawn, = ax.plot(x[o], g["value"].to_numpy()[o], marker="o",
+                             label=f"Z_source {z} deg")
+            ax.axvline(t_re_formula(float(z), 8), color=drawn.get_color(), ls=":", lw=2,
+                       label=f"Eq. 5.1 for Z_source {z} deg")
+        finish(ax, "t_Re (deg)", "mean NE (deg)", "NE vs t_Re, 8 lights, no noise (Fig. 5.11)")
         out.append(("fig5_11", fig))
     return out

@@ -168,21 +168,57 @@ def verdicts(agg, rows=None):
     return out
 
 
+PART_TITLES = {"all": "All light sources (45-degree rings of 4, 6, 8 and 12 lights)",
+               "four": "4 light sources (45x4)"}
+TABLE_AXES = {"*": ("mask", "")}
+
+
+def cell_unit(part, column):
+    return {"ne": "deg", "time": "s"}.get(column, "")
+
+
+def _values(agg, part, masks, column):
+    out = []
+    for m in masks:
+        s = agg[(agg["part"] == part) & (agg["row"] == m) & (agg["column"] == column)]
+        out.append(float(s["value"].iloc[0]) if len(s) else np.nan)
+    return np.asarray(out)
+
+
 def figures(agg):
-    from psbench.report.figures import finish, new_figure
+    """NE per mask, psbench beside the thesis (both parts), and solve time relative to
+    None (psbench beside the thesis's ratio: seconds are not comparable)."""
+    from psbench.report.figures import THESIS_STYLE, figure_legend, finish, new_figure
 
     if agg is None or agg.empty:
         return []
-    fig, (ax,) = new_figure(w=7.5, h=3.4)
-    masks = [m for m in ALL_MASKS]
-    vals = []
-    for m in masks:
-        s = agg[(agg["part"] == "all") & (agg["row"] == m) & (agg["column"] == "ne")]
-        vals.append(float(s["value"].iloc[0]) if len(s) else np.nan)
-    x = np.arange(len(masks))
-    ax.bar(x - 0.2, vals, 0.4, label="psbench")
-    ax.bar(x + 0.2, [THESIS["all"][m]["ne"] for m in masks], 0.4, label="thesis")
-    ax.set_xticks(x, masks, rotation=70, fontsize=6)
-    finish(ax, "", "NE (deg)", "Table 5.3, all light sources")
-    fig.tight_layout()
-    return [("table5_3", fig)]
+    out = []
+    fig, axes = new_figure(ncols=2, w=6.5, h=8.0)
+    for ax, part, masks, title in ((axes[0], "all", ALL_MASKS, "all light sources"),
+                                   (axes[1], "four", FOUR_MASKS, "4 light sources")):
+        y = np.arange(len(masks))[::-1]
+        ax.barh(y + 0.2, _values(agg, part, masks, "ne"), 0.4, label="psbench")
+        ax.barh(y - 0.2, [THESIS[part][m]["ne"] for m in masks], 0.4, color="0.65",
+                label="thesis (Table 5.3)")
+        ax.set_yticks(y, masks)
+        ax.grid(axis="y", visible=False)
+        finish(ax, "mean NE (deg)", "", f"Table 5.3, {title}", legend=False)
+    figure_legend(fig)
+    out.append(("table5_3", fig))
+    t = _values(agg, "all", ALL_MASKS, "time")
+    i0 = ALL_MASKS.index("None")
+    if np.isfinite(t[i0]) and t[i0] > 0:
+        fig, (ax,) = new_figure(h=7.0)
+        y = np.arange(len(ALL_MASKS))[::-1]
+        ax.barh(y, t / t[i0], 0.6, label="psbench: t_solve / t_solve(None)")
+        th = [THESIS["all"][m]["time"] / THESIS["all"]["None"]["time"] for m in ALL_MASKS]
+        style = dict(THESIS_STYLE, ls="none")
+        ax.plot(th, y, label="thesis: time / time(None) (Matlab)", **style)
+        ax.set_xscale("log")
+        ax.set_yticks(y, ALL_MASKS)
+        ax.grid(axis="y", visible=False)
+        finish(ax, "solve time relative to None (x, log scale)", "",
+               "Table 5.3 time, all light sources", legend=False)
+        figure_legend(fig)
+        out.append(("table5_3_time", fig))
+    return out

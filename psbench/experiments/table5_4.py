@@ -96,23 +96,33 @@ def verdicts(agg, rows=None):
     return out
 
 
+PART_TITLES = {"average": "Two rings 30 deg apart, mean zenith varied",
+               "difference": "Two rings around 45 deg, separation varied",
+               "multi": "Three or four rings"}
+_SHORT = {"average": "Two rings 30 deg apart\n(mean zenith varied)",
+          "difference": "Two rings around 45 deg\n(separation varied)",
+          "multi": "Three or four rings\n(12 lights)"}
+TABLE_AXES = {"*": ("light layout (zenith x count + ...)", "")}
+
+
 def figures(agg):
-    from psbench.report.figures import finish, new_figure
+    """NE per layout, psbench beside the thesis, one panel per part."""
+    from psbench.report.figures import figure_legend, finish, new_figure
 
     if agg is None or agg.empty:
         return []
-    fig, (ax,) = new_figure(w=7.5, h=3.6)
-    labels, ps, th = [], [], []
-    for part, cfgs in PARTS.items():
+    fig, axes = new_figure(ncols=3, w=4.6, h=5.4)
+    for ax, (part, cfgs) in zip(axes, PARTS.items()):
+        ps = []
         for cfg in cfgs:
             m = agg[(agg["part"] == part) & (agg["row"] == cfg)]
-            labels.append(cfg)
             ps.append(float(m["value"].iloc[0]) if len(m) else np.nan)
-            th.append(THESIS[part][cfg]["ne"])
-    x = np.arange(len(labels))
-    ax.bar(x - 0.2, ps, 0.4, label="psbench")
-    ax.bar(x + 0.2, th, 0.4, label="thesis")
-    ax.set_xticks(x, labels, rotation=70, fontsize=6)
-    finish(ax, "", "NE (deg)", "Table 5.4")
-    fig.tight_layout()
+        y = np.arange(len(cfgs))[::-1]
+        ax.barh(y + 0.2, ps, 0.4, label="psbench")
+        ax.barh(y - 0.2, [THESIS[part][c]["ne"] for c in cfgs], 0.4, color="0.65",
+                label="thesis (Table 5.4)")
+        ax.set_yticks(y, cfgs)
+        ax.grid(axis="y", visible=False)
+        finish(ax, "mean NE (deg)", "", _SHORT[part], legend=False)
+    figure_legend(fig)
     return [("table5_4", fig)]

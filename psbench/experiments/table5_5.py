@@ -141,20 +141,39 @@ def verdicts(agg, rows=None):
     return out
 
 
+PART_TITLES = {"ne": "NE, images with highlights and shadows (Table 5.5)",
+               "improvement": "Improvement over 1Z ordinary PS (Table 5.5)",
+               "di": "NE, diffuse images (Fig. 5.22)"}
+TABLE_AXES = {"*": ("zeniths / WPS weight", "")}
+
+
+def column_label(part, column):
+    return f"{column} images"
+
+
 def figures(agg):
+    """NE vs image count of every row (thesis dashed in the same colour) and the
+    diffuse-image rows of Fig. 5.22."""
+    from matplotlib.lines import Line2D
+
     from psbench.report.figures import finish, line, new_figure
 
     if agg is None or agg.empty:
         return []
-    fig, axes = new_figure(ncols=2, w=4.2)
+    fig, axes = new_figure(ncols=2, w=6.6, h=5.8)
     for r in ROWS:
         s = line(axes[0], agg, "ne", r)
         color = axes[0].lines[-1].get_color() if len(s) else None
         axes[0].plot(COUNTS, [THESIS["ne"][r][str(n)] for n in COUNTS],
-                     ls="--", lw=0.8, alpha=0.6, color=color)
-    finish(axes[0], "image count n_i", "NE (deg)", "Hi-Sh (Table 5.5; dashed = thesis)")
+                     ls="--", lw=1.4, alpha=0.8, color=color)
+    finish(axes[0], "image count n_i", "mean NE (deg)", "Hi-Sh images (Table 5.5)",
+           legend=False)
     for r in ("1Z/None", "2Z/None"):
         line(axes[1], agg, "di", r)
-    finish(axes[1], "image count n_i", "NE (deg)", "Di (Fig. 5.22)")
-    fig.tight_layout()
+    finish(axes[1], "image count n_i", "mean NE (deg)", "Diffuse images (Fig. 5.22)",
+           legend=False)
+    h, lab = axes[0].get_legend_handles_labels()
+    h.append(Line2D([], [], color="0.3", ls="--", lw=1.4))
+    lab.append("thesis (dashed, same colour)")
+    fig.legend(h, lab, loc="outside upper center", ncol=4)
     return [("table5_5", fig)]

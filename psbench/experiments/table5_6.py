@@ -19,6 +19,9 @@ THESIS = {"": {
 }}
 
 
+TABLE_AXES = {"": ("fusion of the two rings", "surface")}
+
+
 def _records(df):
     recs = []
     if df.empty:

@@ -55,6 +55,17 @@ def cell_kind(part, column):
     return "percent"
 
 
+PART_TITLES = {"30x4+60x4": "IE as % of 2Z PS, 30x4+60x4 (8 images)",
+               "30x8+60x8": "IE as % of 2Z PS, 30x8+60x8 (16 images)",
+               "info": "IE definition of the WPS rows"}
+TABLE_AXES = {"info": ("", ""), "*": ("WPS weight (None = 2Z PS)",
+                    "the compared overall column, psbench's folders, the thesis's objects")}
+
+
+def cell_unit(part, column):
+    return "" if part == "info" else "% of 2Z PS"
+
+
 def _records(df):
     """IE of each weight as % of 2Z PS. WPS rows use ``ie_weighted`` (Eq. 2.30: ring IEs
     of each ring's own solution, weighted) when the store has it, PS rows ``ie_l2``

@@ -26,6 +26,13 @@ def cell_kind(part, column):
     return "ratio"
 
 
+TABLE_AXES = {"": ("WPS weight (None = 2Z PS)", "light layout")}
+
+
+def cell_unit(part, column):
+    return "x 2Z PS"
+
+
 def _records(df):
     recs = []
     if df.empty:

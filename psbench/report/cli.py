@@ -1,19 +1,25 @@
-"""``psbench-report``: rebuild ``reports/`` from the results store alone.
+"""``psbench-report``: rebuild the reports from the results store alone.
 
 Usage::
 
-    psbench-report [--results results] [--out reports] [--scale full|ci] [--panels]
+    psbench-report [--results results] [--out reports] [--scale auto|full|ci] [--panels]
+                   [--force]
 
 Reads every row of the store (never solves), aggregates each registered experiment
 (:mod:`psbench.experiments`, found through :mod:`psbench.registry`; the generic steps are
 in :mod:`psbench.report.tables`), compares with the thesis's values, decides one verdict
-per qualitative conclusion (:mod:`psbench.report.verdicts`), draws the figures and writes one
-Markdown and one HTML page per experiment plus ``index.md`` / ``index.html`` with the
-measured wall time of the runs and provenance. ``--panels`` additionally renders and
-solves ONE small scene to draw the image panels of Figs. 5.15-5.17 (clearly labelled as
-such; see :mod:`psbench.report.panels`). All files are written atomically; corrupt or
-foreign Parquet files are named in a warning and skipped; an empty store gives a report
-that says so.
+per qualitative conclusion (:mod:`psbench.report.verdicts`), draws the figures and writes
+one Markdown and one HTML page per experiment plus ``index.md`` / ``index.html`` (verdict
+totals and key findings first) and ``report.json``.
+
+Scales: the full-scale report goes to ``<out>/``, the ci-scale one to ``<out>/ci/``. By
+default (``--scale auto``) every scale the store holds is reported; a report that holds
+data is never replaced by an emptier one (another scale, or pages that would say NO
+DATA): the command then stops with a one-line message and exit status 2 and changes
+nothing (``--force`` overrides; see :mod:`psbench.report.scales`). ``--panels``
+additionally renders and solves ONE small scene set for the image panels (labelled as
+such; :mod:`psbench.report.panels`). All files are written atomically; corrupt or
+foreign Parquet files are named in a warning and skipped.
 """
 from __future__ import annotations
 
@@ -23,16 +29,16 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from . import figures as F
+from . import pages as G
+from . import scales as S
 from . import tables as T
 from . import verdicts as V
-from .aggregates import data_name
 from .html import save_figure, write_atomic, write_page
 
-MAX_PIVOT_COLS = 16
+__all__ = ["build", "build_all", "main"]
 
 
 def _git_sha():
@@ -48,157 +54,25 @@ def _git_sha():
         return None, None
 
 
-def _num_sort(values):
-    vals = list(dict.fromkeys(values))
-    try:
-        return sorted(vals, key=float)
-    except (TypeError, ValueError):
-        return vals
-
-
-def _fmtv(x):
-    if x is None or (isinstance(x, float) and np.isnan(x)):
-        return None
-    return f"{x:.4g}" if abs(x) < 1e4 else f"{x:.3e}"
-
-
-def _cell(ps, th, df):
-    a, b = _fmtv(ps), _fmtv(th)
-    if a is None and b is None:
-        return ""
-    if b is None:
-        return a
-    if a is None:
-        return f"— / {b}"
-    return f"{a} / {b} ({df:+.3g})"
-
-
-def pivot_part(cmp: pd.DataFrame, part: str) -> pd.DataFrame:
-    """Wide table of one part: rows x columns, cells 'psbench / thesis (diff)'."""
-    p = cmp[cmp["part"] == part]
-    rows = list(dict.fromkeys(p["row"]))
-    cols = list(dict.fromkeys(p["column"]))
-    if all(_isnum(c) for c in cols):
-        cols = _num_sort(cols)
-    out = []
-    for r in rows:
-        rec = {"row": r}
-        for c in cols:
-            m = p[(p["row"] == r) & (p["column"] == c)]
-            rec[c] = _cell(m["psbench"].iloc[0], m["thesis"].iloc[0], m["diff"].iloc[0]) \
-                if len(m) else ""
-        out.append(rec)
-    return pd.DataFrame(out, columns=["row"] + cols)
-
-
-def _isnum(x):
-    try:
-        float(x)
-        return True
-    except (TypeError, ValueError):
-        return False
-
-
-def _wall(rows: pd.DataFrame) -> dict:
-    if rows is None or rows.empty:
-        return dict(n=0, ok=0, failed=0, busy=0.0, first=None, last=None, span=0.0)
-    t = pd.to_numeric(rows.get("t_total"), errors="coerce")
-    if t is None or t.isna().all():
-        t = pd.to_numeric(rows.get("t_render"), errors="coerce").fillna(0) + \
-            pd.to_numeric(rows.get("t_solve"), errors="coerce").fillna(0)
-    utc = pd.to_datetime(rows["utc"], utc=True, errors="coerce").dropna()
-    first, last = (utc.min(), utc.max()) if len(utc) else (None, None)
-    return dict(n=int(len(rows)), ok=int((rows["status"] == "ok").sum()),
-                failed=int((rows["status"] != "ok").sum()), busy=float(np.nansum(t)),
-                first=first, last=last,
-                span=float((last - first).total_seconds()) if first is not None else 0.0)
-
-
-def _ts(x):
-    return "" if x is None or pd.isna(x) else pd.Timestamp(x).strftime("%Y-%m-%d %H:%M:%S")
-
-
-def _pstr(v):
-    if isinstance(v, float) and v == int(v) and abs(v) < 1e9:
-        return str(int(v))
-    return str(v)
-
-
-def _averaged_over(rows):
-    keys = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model", "shadows",
-            "size", "seed")
-    out = []
-    for k in keys:
-        if k in rows and rows[k].notna().any():
-            vals = _num_sort([_pstr(v) if k != "data" else data_name(v)
-                              for v in rows[k].dropna().unique()])
-            if len(vals) > 12:
-                vals = vals[:12] + [f"... ({len(vals)} values)"]
-            out.append(f"{k}: {', '.join(vals)}")
-    return out
-
-
-def build_experiment(name, df, out, scale, messages, results=None):
-    """Write one experiment's page; returns (summary dict, verdicts)."""
-    mod = T.experiment_module(name)
-    rows_all = T.select(df, name, scale, status=None, results=results)
+def _build_experiment(name, rows_all, out, scale, messages, results):
+    """Write one experiment's page, figures and CSV; returns (summary, verdicts)."""
     ok = rows_all[rows_all["status"] == "ok"] if not rows_all.empty else rows_all
-    failed = rows_all[rows_all["status"] != "ok"] if not rows_all.empty else rows_all
     agg = T.aggregate(name, ok)
     cmp = T.compare(name, agg)
     verdicts = V.verdicts(name, agg, ok)
-    spec = T.grid(name, results)
     size = T.scale_size(name, scale, results)
-    notes = getattr(mod, "NOTES", "")
-    blocks = [("h1", T.title(name)),
-              ("p", f"Experiment `{name}`, scale `{scale}`"
-                    + (f" (image size {size} x {size}; the thesis used 512 x 512)" if size else "")
-                    + f". {spec.get('description', '')}"),
-              ("p", "What psbench averages: " + getattr(mod, "AVERAGES", "")),
-              ("p", ("Deviations / caveats: " + notes) if notes else
-                    "Deviations / caveats: none beyond the image size stated above."),
-              ("p", f"Runs: {len(ok)} ok, {len(failed)} failed (of {len(rows_all)} stored at "
-                    f"this scale).")]
-    if len(ok):
-        blocks += [("h3", "Parameters of the ok runs"), ("list", _averaged_over(ok))]
-    if len(failed):
-        errs = failed["error"].fillna("(no message)").astype(str).str.slice(0, 200)
-        counts = errs.value_counts()
-        blocks += [("h3", "Failed runs"),
-                   ("list", [f"{n} run(s): {msg}" for msg, n in counts.items()][:10])]
-    if rows_all.empty:
-        blocks.append(("p", "NO DATA: the store holds no run of this experiment at this scale. "
-                            f"Run `psbench +experiment={name} scale={scale}` first."))
-    blocks += [("h2", "Verdicts on the thesis's conclusions"), ("verdicts", verdicts)]
     figs, errs = F.figures(name, agg)
     messages.extend(errs)
-    if figs:
-        blocks.append(("h2", "Figures"))
-        for stem, fig in figs:
-            save_figure(fig, Path(out) / "figures" / f"{stem}.png", dpi=F.DPI)
-            blocks.append(("img", f"figures/{stem}.png", f"{stem}: psbench, scale {scale}"))
-    blocks.append(("h2", "psbench vs thesis"))
-    blocks.append(("p", "Cells: psbench / thesis (psbench - thesis); a lone number is psbench "
-                        "(the thesis printed none); '— / x' means psbench has no value."))
-    hidden = set(getattr(mod, "HIDDEN_PARTS", ()))
-    for part in list(dict.fromkeys(cmp["part"])):
-        if part in hidden:
-            blocks.append(("p", f"Part '{part}' ({int((cmp['part'] == part).sum())} cells) is "
-                                f"plotted above and listed in data/{name}.csv."))
-            continue
-        piv = pivot_part(cmp, part)
-        if part:
-            blocks.append(("h3", f"Part: {part}"))
-        if piv.shape[1] - 1 > MAX_PIVOT_COLS:
-            piv = cmp[cmp["part"] == part].drop(columns="part").head(80)
-        blocks.append(("table", piv))
-    text = T.grid_text(name)
-    if text is not None:
-        blocks += [("h2", "Experiment definition"), ("pre", text)]
+    rel = []
+    for stem, fig in figs:
+        save_figure(fig, Path(out) / "figures" / f"{stem}.png", dpi=F.DPI)
+        rel.append((f"figures/{stem}.png", stem))
+    blocks = G.experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, rel,
+                                 results=results)
     write_page(out, name, blocks, T.title(name))
     write_atomic(Path(out) / "data" / f"{name}.csv", cmp.to_csv(index=False))
     shas = sorted(set(rows_all["git_sha"].dropna())) if "git_sha" in rows_all else []
-    summary = dict(experiment=name, **_wall(rows_all), size=size, shas=shas,
+    summary = dict(experiment=name, **G.wall(rows_all), size=size, shas=shas,
                    dirty=int(rows_all["git_dirty"].fillna(False).astype(bool).sum())
                    if "git_dirty" in rows_all else 0,
                    supported=sum(v.status == V.SUPPORTED for v in verdicts),
@@ -207,26 +81,37 @@ def build_experiment(name, df, out, scale, messages, results=None):
     return summary, verdicts
 
 
+def _selections(df, scale, names, results):
+    return {n: T.select(df, n, scale, status=None, results=results) for n in names}
+
+
+def _ok_runs(sel) -> dict:
+    return {n: int((r["status"] == "ok").sum()) if len(r) else 0 for n, r in sel.items()}
+
+
 def build(results="results", out="reports", scale="full", panels=False, log=print,
-          experiments=None) -> Path:
-    """Rebuild the report folder; returns the path of ``index.html``.
+          experiments=None, force=False, _store=None) -> Path:
+    """Rebuild the ``scale`` report in the folder ``out``; returns ``out/index.html``.
 
-    ``experiments`` restricts the pages to a subset of the registered experiments
-    (:func:`psbench.report.tables.names`).
+    Raises :class:`psbench.report.scales.ReportRefused` before writing anything when
+    ``out`` holds a report of another scale with data, or pages with data the store
+    lacks at this scale (``force`` overrides). ``experiments`` restricts the pages to a
+    subset of the registered experiments (:func:`psbench.report.tables.names`).
     """
-    import psbench
-
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    df, messages = T.load_store(results)
+    df, messages = _store if _store is not None else T.load_store(results)
+    messages = list(messages)
+    names = [n for n in T.names() if experiments is None or n in experiments]
+    sel = _selections(df, scale, names, results)
+    S.check(out, scale, _ok_runs(sel), results, force=force)
     for m in messages:
         log(f"warning: {m}")
-    summaries, all_verdicts = [], []
-    names = [n for n in T.names() if experiments is None or n in experiments]
+    out.mkdir(parents=True, exist_ok=True)
+    summaries, verdicts_by = [], {}
     for name in names:
-        s, vs = build_experiment(name, df, out, scale, messages, results=results)
+        s, vs = _build_experiment(name, sel[name], out, scale, messages, results)
         summaries.append(s)
-        all_verdicts.extend(vs)
+        verdicts_by[name] = vs
     panel_files = []
     if panels:
         from .panels import build_panels
@@ -234,86 +119,116 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         panel_files = build_panels(out, log=log)
     elif (out / "panels").is_dir():
         panel_files = sorted(p.name for p in (out / "panels").glob("*.png"))
-    sha, dirty = _git_sha()
-    summ = pd.DataFrame(summaries)
-    tot_busy = float(summ["busy"].sum()) if len(summ) else 0.0
-    firsts = summ["first"].dropna() if len(summ) else pd.Series(dtype=object)
-    lasts = summ["last"].dropna() if len(summ) else pd.Series(dtype=object)
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-    blocks = [("h1", f"psbench thesis reproduction report (scale: {scale})"),
-              ("p", f"Generated {now} from the results store '{results}' by psbench-report "
-                    f"(no solving). psbench {psbench.__version__}, git {sha or 'unknown'}"
-                    f"{' (dirty tree)' if dirty else ''}.")]
-    if df.empty:
-        blocks.append(("p", "THE RESULTS STORE IS EMPTY: no runs were found, so every table "
-                            "below is empty and every verdict INCONCLUSIVE. Run e.g. "
-                            "`psbench +experiment=table5_3 scale=" + scale + "` first."))
-    if messages:
-        blocks += [("h2", "Warnings"), ("list", messages)]
-    if len(df):
-        shas = sorted({x for s in summaries for x in s["shas"]})
-        dirty_rows = sum(s["dirty"] for s in summaries)
-        n_rows = sum(s["n"] for s in summaries)
-        vers = df["psbench_version"].dropna().unique() if "psbench_version" in df else []
-        blocks.append(("p", f"Store: {len(df)} rows in total (all scales and sweeps), {n_rows} "
-                            f"of them reported here; those were written by psbench "
-                            f"{', '.join(map(str, vers)) or '?'} at git "
-                            f"{', '.join(s[:10] for s in shas) or '?'} ({dirty_rows} from a tree "
-                            f"with uncommitted changes: others were editing concurrently)."))
-    blocks.append(("h2", "Measured wall time"))
-    span = (max(lasts) - min(firsts)).total_seconds() if len(firsts) and len(lasts) else 0.0
-    blocks.append(("p", f"Sum of the per-run times (render + solve) over all experiments at this "
-                        f"scale: {tot_busy:.1f} s; first run {_ts(min(firsts) if len(firsts) else None)}"
-                        f", last run {_ts(max(lasts) if len(lasts) else None)} UTC (span "
-                        f"{span / 60:.1f} min, includes any pauses between experiments)."))
-    tab = pd.DataFrame([{
-        "experiment": s["experiment"], "size": s["size"] or "", "ok": s["ok"],
-        "failed": s["failed"], "run time sum (s)": round(s["busy"], 1),
-        "first utc": _ts(s["first"]), "last utc": _ts(s["last"]),
-        "wall span (min)": round(s["span"] / 60, 2), "SUPPORTED": s["supported"],
-        "NOT SUPPORTED": s["not_supported"], "INCONCLUSIVE": s["inconclusive"]}
-        for s in summaries])
-    blocks.append(("table", tab))
-    blocks += [("h2", "Deviations from the thesis (chosen to fit the time budget or the data)"),
-               ("list", [f"{n}: {getattr(T.experiment_module(n), 'NOTES', '')}" for n in names
-                         if getattr(T.experiment_module(n), "NOTES", "")])]
-    blocks += [("h2", "Pages"),
-               ("links", [(f"{n}.html", f"{T.title(n)} ({n})") for n in names])]
-    other = "ci" if scale == "full" else None
-    if other and (out / other / "index.html").is_file():
-        blocks += [("h2", "Other scale"),
-                   ("links", [(f"{other}/index.html", f"the same report on the {other}-scale runs "
-                                                      f"(small images, fixed seeds; the CI gate's "
-                                                      f"data)")])]
-    if panel_files:
-        blocks += [("h2", "Image panels (one small scene rendered and solved by "
-                          "psbench-report --panels, not from the store)"),
-                   ("links", [("panels.html", "Figs. 5.15-5.17 style panels, normals, NE maps, "
-                                              "3D render")])]
-    blocks += [("h2", "All verdicts")]
-    blocks.append(("table", pd.DataFrame([v.as_dict() for v in all_verdicts],
-                                         columns=["experiment", "status", "claim", "detail"])))
-    write_page(out, "index", blocks, "psbench report")
-    log(f"report written to {out / 'index.html'} ({len(df)} store rows, "
-        f"{sum(v.status == V.SUPPORTED for v in all_verdicts)} SUPPORTED, "
-        f"{sum(v.status == V.NOT_SUPPORTED for v in all_verdicts)} NOT SUPPORTED, "
-        f"{sum(v.status == V.INCONCLUSIVE for v in all_verdicts)} INCONCLUSIVE)")
+    blocks = G.index_blocks(
+        scale=scale, size_text=_size_text(summaries, scale),
+        provenance=_provenance(df, summaries, results, now),
+        summaries=summaries, verdicts_by=verdicts_by, messages=messages, empty=df.empty,
+        other_link=_other_link(out, scale), panels=bool(panel_files),
+        deviations=[(n, getattr(T.experiment_module(n), "NOTES", "")) for n in names
+                    if getattr(T.experiment_module(n), "NOTES", "")])
+    write_page(out, "index", blocks, f"psbench report ({scale})")
+    write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now))
+    all_v = [v for vs in verdicts_by.values() for v in vs]
+    log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
+        f"{sum(v.status == V.SUPPORTED for v in all_v)} SUPPORTED, "
+        f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "
+        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE)")
     return out / "index.html"
 
 
+def _size_text(summaries, scale) -> str:
+    sizes = sorted({int(s["size"]) for s in summaries if s["size"]})
+    sz = ", ".join(f"{x} x {x}" for x in sizes) or "no images"
+    return (f"Thesis tables and figures re-run by psbench at the `{scale}` scale (image sizes "
+            f"{sz}; the thesis used 512 x 512), compared with the thesis's printed values.")
+
+
+def _other_link(out, scale) -> str:
+    if scale == "full" and (out / "ci" / "index.html").is_file():
+        return "The same report on the ci-scale runs (small images, the CI gate's data): " \
+               "[ci/index.html](ci/index.html)."
+    if scale == "ci" and out.name == "ci" and (out.parent / "index.html").is_file():
+        return "The full-scale report: [../index.html](../index.html)."
+    return ""
+
+
+def _provenance(df, summaries, results, now) -> str:
+    import psbench
+
+    sha, dirty = _git_sha()
+    text = (f"Generated {now} from the results store `{G.display_path(results)}` by "
+            f"psbench-report (no solving); psbench {psbench.__version__}, git "
+            f"{(sha or 'unknown')[:10]}{' (uncommitted changes)' if dirty else ''}.")
+    if len(df):
+        shas = sorted({x for s in summaries for x in s["shas"]})
+        vers = df["psbench_version"].dropna().unique() if "psbench_version" in df else []
+        n_rows = sum(s["n"] for s in summaries)
+        dirty_rows = sum(s["dirty"] for s in summaries)
+        firsts = [s["first"] for s in summaries if s["first"] is not None]
+        lasts = [s["last"] for s in summaries if s["last"] is not None]
+        span = (max(lasts) - min(firsts)).total_seconds() / 60 if firsts and lasts else 0.0
+        busy = sum(s["busy"] for s in summaries)
+        text += (f" The store holds {len(df)} rows (all scales and sweeps); {n_rows} are "
+                 f"reported here, written by psbench {', '.join(map(str, vers)) or '?'} at "
+                 f"git {', '.join(s[:10] for s in shas) or '?'} ({dirty_rows} from a tree "
+                 f"with uncommitted changes). Sum of per-run times (render + solve): "
+                 f"{busy:.1f} s; runs span {span:.1f} min of wall time (including any pauses "
+                 f"between experiments).")
+    return text
+
+
+def build_all(results="results", out="reports", scale="auto", panels=False, log=print,
+              force=False) -> list[Path]:
+    """Build the report of every scale the store holds (``scale="auto"``) or of one scale:
+    full into ``out``, ci into ``out/ci``. Every target is checked before anything is
+    written (:func:`psbench.report.scales.check`); returns the index paths."""
+    store = T.load_store(results)
+    if scale == "auto":
+        held = S.held(store[0], results)
+        targets = [s for s in S.SCALES if held[s]] or ["full"]
+        for s in S.SCALES:
+            if s not in targets and S.existing(S.folder(out, s)):
+                log(f"{s} scale: the store holds no {s}-scale runs; "
+                    f"{S.folder(out, s)} is left as it is")
+    else:
+        targets = [scale]
+    names = T.names()
+    for s in targets:
+        S.check(S.folder(out, s), s, _ok_runs(_selections(store[0], s, names, results)),
+                results, force=force)
+    with_panels = "full" if "full" in targets else targets[0]
+    # ci first, so that the full index can link to it
+    order = sorted(targets, key=lambda s: s == "full")
+    return [build(results, S.folder(out, s), s, panels=panels and s == with_panels, log=log,
+                  force=True, _store=store) for s in order]
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="psbench-report", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="psbench-report",
+                                 description="Rebuild the thesis reports from the results "
+                                             "store alone (never solves).",
+                                 epilog="Full-scale report in OUT/, ci-scale report in OUT/ci/; "
+                                        "a report holding data is never replaced by an "
+                                        "emptier one (exit 2) unless --force.")
     ap.add_argument("--results", default=None,
                     help="results store root (default $PSBENCH_RESULTS or results)")
-    ap.add_argument("--out", default="reports", help="report folder (default reports)")
-    ap.add_argument("--scale", default="full", choices=("full", "ci"),
-                    help="which scale's rows to report (default full)")
+    ap.add_argument("--out", default="reports", help="report root folder (default reports)")
+    ap.add_argument("--scale", default="auto", choices=("auto",) + S.SCALES,
+                    help="which scale to report (default auto: every scale the store holds; "
+                         "full goes to OUT, ci to OUT/ci)")
     ap.add_argument("--panels", action="store_true",
-                    help="also render+solve one small scene for the image panels")
+                    help="also render+solve one small scene set for the image panels")
+    ap.add_argument("--force", action="store_true",
+                    help="replace a report even if it holds data the store lacks")
     a = ap.parse_args(argv)
     from psbench.harness.store import default_root
 
-    build(default_root(a.results), a.out, a.scale, panels=a.panels)
+    try:
+        build_all(default_root(a.results), a.out, a.scale, panels=a.panels, force=a.force)
+    except S.ReportRefused as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
     return 0
 
 

@@ -15,6 +15,9 @@ the CI gate share:
 """
 from __future__ import annotations
 
+import copy
+import functools
+import os
 import re
 import warnings
 
@@ -59,15 +62,35 @@ def title(name: str) -> str:
     return getattr(experiment_module(name), "TITLE", None) or name
 
 
-def grid(name: str, results=None) -> dict:
-    """The experiment's grid mapping, interpolations resolved with ``results_dir =
-    results`` ({} when it has no readable grid)."""
+def _cache_key(name, results):
+    """What a resolved grid depends on: the experiment, the store folder, the grid file's
+    modification time and the environment its interpolations may read."""
+    from psbench import registry
+    from psbench._checks import PsbenchError
+
+    try:
+        path = registry.get("experiments", name).grid
+        mtime = path.stat().st_mtime_ns if path is not None and path.is_file() else None
+    except (PsbenchError, OSError):
+        path, mtime = None, None
+    env = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("PSBENCH")))
+    return name, str(results), str(path), mtime, env
+
+
+@functools.lru_cache(maxsize=256)
+def _grid(key):
     from psbench.harness.grid import load
 
     try:
-        return load(name, results_dir=results)
+        return load(key[0], results_dir=None if key[1] == "None" else key[1])
     except Exception:  # noqa: BLE001 - a page is still written without its grid
         return {}
+
+
+def grid(name: str, results=None) -> dict:
+    """The experiment's grid mapping, interpolations resolved with ``results_dir =
+    results`` ({} when it has no readable grid). Cached per grid file and environment."""
+    return copy.deepcopy(_grid(_cache_key(name, results)))
 
 
 def grid_text(name: str) -> str | None:
@@ -102,17 +125,22 @@ def load_store(results) -> tuple[pd.DataFrame, list[str]]:
     return df, msgs
 
 
-def expected_run_ids(experiment: str, scale: str, results=None) -> set | None:
+def expected_run_ids(experiment: str, scale: str, results=None) -> frozenset | None:
     """run_ids of the current definition of ``experiment`` at ``scale`` (None if the grid
-    cannot be expanded here)."""
+    cannot be expanded here). Cached like :func:`grid`."""
+    return _run_ids(_cache_key(experiment, results), scale)
+
+
+@functools.lru_cache(maxsize=256)
+def _run_ids(key, scale):
     try:
         from psbench.harness.grid import expand
         from psbench.harness.run import run_id
 
-        spec = grid(experiment, results)
+        spec = copy.deepcopy(_grid(key))
         if not spec:
             return None
-        return {run_id(p) for p in expand(spec, scale)}
+        return frozenset(run_id(p) for p in expand(spec, scale))
     except Exception:  # noqa: BLE001
         return None
 

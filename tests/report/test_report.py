@@ -16,7 +16,8 @@ from psbench.harness.store import write_rows
 from psbench.report import aggregates as A
 from psbench.report import tables as T
 from psbench.report import verdicts as V
-from psbench.report.cli import build, main, pivot_part
+from psbench.report.cli import build, main
+from psbench.report.present import part_table
 
 SURFS = ("semisphere", "spheres", "sombrero", "mozart", "penny")
 T0 = dt.datetime(2026, 1, 1, 1, 0, 0, tzinfo=dt.timezone.utc)
@@ -80,7 +81,7 @@ def test_thesis_values_transcribed():
     assert _thesis("table6_1", "30x8+60x8", "e", "overall") == 68.4
     assert _thesis("table6_2", "", "eZsurface", "30x4+60x4") == 3.06
     assert _thesis("table2_1", "", "4", "30") == 2.4495
-    assert _thesis("table5_2", "", "k_low", "12") == 0.08
+    assert _thesis("table5_2", "optimum", "k_low", "12") == 0.08
     assert T52.t_re_formula(30, 8) == 30 and T52.t_re_formula(60, 8) == 15
     f = T.thesis_frame("table5_3")
     assert len(f) == 5 * (len(T53.ALL_MASKS) + len(T53.FOUR_MASKS))
@@ -112,9 +113,19 @@ def test_aggregate_table5_3_means_and_parts():
     assert th["diff"].iloc[0] == pytest.approx(0.1)
     # thesis row order is kept
     assert list(dict.fromkeys(cmp[cmp["part"] == "all"]["row"]))[:3] == ["None", "xNL", "Th"]
-    piv = pivot_part(cmp, "all")
-    assert piv.loc[piv["row"] == "Xx", "ne"].empty
-    assert piv.loc[piv["row"] == "Th-Hi-Re-Sh", "ne"].iloc[0].startswith("8.38 / 8.28 (+0.1")
+    tab, caption = part_table("table5_3", cmp, "all")
+    assert caption == "rows: mask"
+    th = tab[tab[("", "mask")] == "Th-Hi-Re-Sh"].iloc[0]
+    # psbench, thesis and difference in separate columns, one precision, unit in the header
+    assert (th[("NE (deg)", "psbench")], th[("NE (deg)", "thesis")], th[("NE (deg)", "Δ")]) \
+        == ("8.38", "8.28", "+0.10")
+    assert th[("QF total", "thesis")] == "0.56" and th[("QF highlight", "Δ")] == "-0.05"
+    # times: ratios to None for both, psbench's seconds beside them, never the thesis's seconds
+    none = tab[tab[("", "mask")] == "None"].iloc[0]
+    assert none[("time", "psbench (x None)")] == "1.0"
+    assert th[("time", "thesis (x None)")] == f"{20.12 / 0.11:.1f}"
+    assert ("time", "thesis") not in tab.columns and ("time", "psbench (s)") in tab.columns
+    assert not any("/" in str(v) and "(" in str(v) for v in tab.to_numpy().ravel())
 
 
 def test_select_filters_scale_and_status():
@@ -221,7 +232,7 @@ def test_build_writes_pages_figures_index(tmp_path):
     for name in ("table5_3", "table5_4", "fig5_12", "fig4_9"):
         assert (out / f"{name}.md").is_file() and (out / f"{name}.html").is_file()
     md = (out / "table5_3.md").read_text()
-    assert "SUPPORTED" in md and "8.38 / 8.28" in md
+    assert "SUPPORTED" in md and "| 8.38 | 8.28 | +0.10 |" in md
     assert (out / "figures" / "fig5_12.png").stat().st_size > 1000
     assert (out / "figures" / "fig5_12.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     t54 = (out / "table5_4.md").read_text()

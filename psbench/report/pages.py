@@ -1,0 +1,230 @@
+"""The blocks of one experiment's page and of the index (see :mod:`psbench.report.html`).
+
+An experiment page opens with its verdicts, then the figures, then the comparison with
+the thesis (psbench, thesis and difference in separate columns with units,
+:mod:`psbench.report.present`), what was averaged and the grid. The index opens with the
+verdict totals (overall and per experiment) and the key findings: the first claim of
+every experiment (modules list the thesis's main conclusion first), NOT SUPPORTED first.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import present as P
+from . import tables as T
+from . import verdicts as V
+from .aggregates import data_name
+from .html import STATUSES, Link
+
+__all__ = ["experiment_blocks", "index_blocks", "wall", "display_path"]
+
+
+def display_path(path) -> str:
+    """A store path as shown on a page: relative to the working folder when inside it,
+    else its last two components (pages carry no machine-specific absolute paths)."""
+    p = Path(path).resolve()
+    try:
+        return os.path.relpath(p, Path.cwd()) if p.is_relative_to(Path.cwd()) else \
+            ".../" + "/".join(p.parts[-2:])
+    except (ValueError, OSError):
+        return p.name
+
+
+def _num_sort(values):
+    vals = list(dict.fromkeys(values))
+    try:
+        return sorted(vals, key=float)
+    except (TypeError, ValueError):
+        return vals
+
+
+def _pstr(v):
+    if isinstance(v, float) and v == int(v) and abs(v) < 1e9:
+        return str(int(v))
+    return str(v)
+
+
+def _parameters(rows) -> pd.DataFrame:
+    keys = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model", "shadows",
+            "size", "seed")
+    out = []
+    for k in keys:
+        if k in rows and rows[k].notna().any():
+            vals = _num_sort([_pstr(v) if k != "data" else data_name(v)
+                              for v in rows[k].dropna().unique()])
+            if len(vals) > 12:
+                vals = vals[:12] + [f"... ({len(vals)} values)"]
+            out.append({"parameter": k, "values": ", ".join(vals)})
+    return pd.DataFrame(out, columns=["parameter", "values"])
+
+
+def wall(rows: pd.DataFrame) -> dict:
+    """Run counts and timing of one experiment's stored rows."""
+    if rows is None or rows.empty:
+        return dict(n=0, ok=0, failed=0, busy=0.0, first=None, last=None, span=0.0)
+    t = pd.to_numeric(rows.get("t_total"), errors="coerce")
+    if t is None or t.isna().all():
+        t = pd.to_numeric(rows.get("t_render"), errors="coerce").fillna(0) + \
+            pd.to_numeric(rows.get("t_solve"), errors="coerce").fillna(0)
+    utc = pd.to_datetime(rows["utc"], utc=True, errors="coerce").dropna()
+    first, last = (utc.min(), utc.max()) if len(utc) else (None, None)
+    return dict(n=int(len(rows)), ok=int((rows["status"] == "ok").sum()),
+                failed=int((rows["status"] != "ok").sum()), busy=float(np.nansum(t)),
+                first=first, last=last,
+                span=float((last - first).total_seconds()) if first is not None else 0.0)
+
+
+def _ts(x):
+    return "" if x is None or pd.isna(x) else pd.Timestamp(x).strftime("%Y-%m-%d %H:%M:%S")
+
+
+def _tally(vs) -> dict:
+    return {s: sum(v.status == s for v in vs) for s in STATUSES}
+
+
+def _comparison_blocks(name, cmp) -> list:
+    mod = T.experiment_module(name)
+    timed = any(P.kind(name, p, c) == "time" for p, c in zip(cmp["part"], cmp["column"]))
+    blocks = [("h2", "psbench vs thesis"),
+              ("p", "psbench: this report's mean over the runs named above; thesis: the value "
+                    "the thesis prints; Δ = psbench − thesis, in the column's unit; — : no "
+                    "value." + (" Times are compared as ratios to the unmasked solve (None) "
+                                "of the same runs, never as seconds (the thesis timed Matlab "
+                                "on other hardware)." if timed else ""))]
+    hidden = set(getattr(mod, "HIDDEN_PARTS", ()))
+    parts = list(dict.fromkeys(cmp["part"]))
+    measured = set(cmp.loc[cmp["psbench"].notna(), "part"])
+    parts = [p for p in parts if p in measured] + [p for p in parts if p not in measured]
+    for part in parts:
+        if part in hidden:
+            blocks.append(("p", f"Part `{part}` ({int((cmp['part'] == part).sum())} cells) is "
+                                f"plotted above and listed in `data/{name}.csv`."))
+            continue
+        if part or len(parts) > 1:
+            blocks.append(("h3", P.part_title(name, part)))
+        table, caption = P.part_table(name, cmp, part)
+        blocks.append(("table", table, caption))
+    return blocks
+
+
+def experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, figs,
+                      results=None) -> list:
+    """Blocks of one experiment's page; ``figs`` = ``[(relpath, stem), ...]``."""
+    mod = T.experiment_module(name)
+    ok = rows_all[rows_all["status"] == "ok"] if not rows_all.empty else rows_all
+    failed = rows_all[rows_all["status"] != "ok"] if not rows_all.empty else rows_all
+    desc = str(T.grid(name, results).get("description", "") or "").strip()
+    notes = getattr(mod, "NOTES", "")
+    blocks = [("h1", T.title(name)),
+              ("p", f"Experiment `{name}`, scale `{scale}`"
+                    + (f" (image size {size} x {size}; the thesis used 512 x 512)" if size else "")
+                    + "." + (f" {desc}" if desc else "")),
+              ("p", f"Runs: {len(ok)} ok, {len(failed)} failed (of {len(rows_all)} stored at "
+                    f"this scale). Back to [the index](index.html).")]
+    if rows_all.empty:
+        blocks.append(("p", f"**NO DATA**: the store holds no run of this experiment at this "
+                            f"scale. Run `psbench +experiment={name} scale={scale}` first."))
+    t = _tally(verdicts)
+    blocks += [("h2", "Verdicts on the thesis's conclusions"), ("totals", t),
+               ("verdicts", verdicts)]
+    if figs:
+        blocks.append(("h2", "Figures"))
+        for rel, stem in figs:
+            blocks.append(("img", rel, f"{stem}: psbench at scale {scale}"))
+    blocks += _comparison_blocks(name, cmp)
+    blocks += [("h2", "What was run"),
+               ("p", "What psbench averages: " + getattr(mod, "AVERAGES", "")),
+               ("p", ("Deviations / caveats: " + notes) if notes else
+                "Deviations / caveats: none beyond the image size stated above.")]
+    if len(ok):
+        blocks += [("h3", "Parameters of the ok runs"), ("table", _parameters(ok))]
+    if len(failed):
+        errs = failed["error"].fillna("(no message)").astype(str).str.slice(0, 200)
+        counts = errs.value_counts()
+        blocks += [("h3", "Failed runs"),
+                   ("table", pd.DataFrame([{"runs": n, "error": msg}
+                                           for msg, n in counts.items()][:10]))]
+    text = T.grid_text(name)
+    if text is not None:
+        blocks += [("h3", "Experiment definition (grid YAML)"), ("pre", text)]
+    return blocks
+
+
+def _findings(summaries, verdicts_by) -> pd.DataFrame:
+    order = {V.NOT_SUPPORTED: 0, V.SUPPORTED: 1, V.INCONCLUSIVE: 2}
+    recs = []
+    for s in summaries:
+        vs = verdicts_by.get(s["experiment"]) or []
+        if vs:
+            v = vs[0]
+            recs.append((order.get(v.status, 3), len(recs),
+                         {"status": v.status, "experiment": Link(s["experiment"],
+                                                                  f"{s['experiment']}.html"),
+                          "claim": v.claim, "psbench's numbers": v.detail}))
+    recs.sort(key=lambda r: r[:2])
+    return pd.DataFrame([r[2] for r in recs],
+                        columns=["status", "experiment", "claim", "psbench's numbers"])
+
+
+def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messages,
+                 empty, other_link, panels, deviations) -> list:
+    """Blocks of ``index`` for one scale."""
+    all_v = [v for vs in verdicts_by.values() for v in vs]
+    tot = _tally(all_v)
+    blocks = [("h1", f"psbench thesis reproduction report (scale: {scale})"),
+              ("p", size_text + (f" {other_link}" if other_link else ""))]
+    if empty:
+        blocks.append(("p", f"**THE RESULTS STORE IS EMPTY**: no runs were found, so every "
+                            f"table below is empty and every verdict INCONCLUSIVE. Run e.g. "
+                            f"`psbench +experiment=table5_3 scale={scale}` first."))
+    blocks += [("h2", "Verdicts at a glance"),
+               ("p", "Each page decides the thesis's qualitative conclusions on psbench's "
+                     "numbers: SUPPORTED, NOT SUPPORTED, or INCONCLUSIVE (no data, or a gap "
+                     "below its margin)."),
+               ("totals", tot)]
+    per = pd.DataFrame([{
+        "experiment": Link(s["experiment"], f"{s['experiment']}.html"),
+        "thesis item": T.title(s["experiment"]), "ok runs": s["ok"],
+        "SUPPORTED": s["supported"], "NOT SUPPORTED": s["not_supported"],
+        "INCONCLUSIVE": s["inconclusive"]} for s in summaries],
+        columns=["experiment", "thesis item", "ok runs", "SUPPORTED", "NOT SUPPORTED",
+                 "INCONCLUSIVE"])
+    if len(per):
+        per.loc[len(per)] = ["total", "", sum(s["ok"] for s in summaries), tot[V.SUPPORTED],
+                             tot[V.NOT_SUPPORTED], tot[V.INCONCLUSIVE]]
+    blocks.append(("table", per, "verdicts per experiment (click a name for its page)"))
+    blocks += [("h2", "Key findings"),
+               ("p", "The main conclusion of each table and figure (the first claim on its "
+                     "page) and what psbench's runs say about it; claims psbench does not "
+                     "support come first. Every claim is listed under All verdicts below."),
+               ("table", _findings(summaries, verdicts_by))]
+    if messages:
+        blocks += [("h2", "Warnings"), ("list", messages)]
+    if panels:
+        blocks += [("h2", "Image panels"),
+                   ("links", [("panels.html", "masks, NE maps, normals, WPS and a 3D height "
+                                              "render of one small scene set (made by "
+                                              "`psbench-report --panels`, not from the "
+                                              "store)")])]
+    blocks += [("h2", "Provenance and measured wall time"), ("p", provenance)]
+    tab = pd.DataFrame([{
+        "experiment": s["experiment"], "image size": s["size"] or "—", "ok": s["ok"],
+        "failed": s["failed"], "run time sum (s)": f"{s['busy']:.1f}",
+        "first run (UTC)": _ts(s["first"]), "last run (UTC)": _ts(s["last"]),
+        "wall span (min)": f"{s['span'] / 60:.2f}"} for s in summaries])
+    blocks.append(("table", tab))
+    if deviations:
+        blocks += [("h2", "Deviations from the thesis"),
+                   ("table", pd.DataFrame(deviations, columns=["experiment", "deviation"]))]
+    blocks += [("h2", "All verdicts"),
+               ("table", pd.DataFrame([{"experiment": Link(v.experiment,
+                                                           f"{v.experiment}.html"),
+                                        "status": v.status, "claim": v.claim,
+                                        "psbench's numbers": v.detail} for v in all_v],
+                                      columns=["experiment", "status", "claim",
+                                               "psbench's numbers"]))]
+    return blocks

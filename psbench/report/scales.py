@@ -1,0 +1,147 @@
+"""Which scales a store holds, and the rule that keeps a report from being destroyed.
+
+Each experiment runs at a ``full`` and a ``ci`` scale (its grid YAML). A report folder
+holds one scale: the full-scale report in ``<out>/`` and the ci-scale one in
+``<out>/ci/`` (:func:`folder`). ``psbench-report`` reports the scales the store holds
+(:func:`held`) and never replaces a report that has data with one that has less:
+
+- a folder holding a report of another scale is not overwritten;
+- a page that reports runs is not replaced by a "NO DATA" page (the store lacks that
+  experiment at that scale) unless ``force``.
+
+Every build leaves ``report.json`` (scale, runs and verdict counts per experiment) that
+:func:`existing` reads back; reports written before it existed are recognized from their
+pages.
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pandas as pd
+
+from psbench._checks import PsbenchError
+
+from . import tables as T
+
+__all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
+           "manifest"]
+
+SCALES = ("full", "ci")
+MANIFEST = "report.json"
+
+
+class ReportRefused(PsbenchError):
+    """psbench-report would replace a report holding data with an emptier one."""
+
+
+def folder(out, scale) -> Path:
+    """Folder of the ``scale`` report under the report root ``out``."""
+    return Path(out) if scale == "full" else Path(out) / scale
+
+
+def _other(scale):
+    return [s for s in SCALES if s != scale]
+
+
+def held(df: pd.DataFrame, results=None, names=None) -> dict[str, list[str]]:
+    """``{scale: [experiment, ...]}``: experiments with ok rows that belong to that scale
+    only (a run shared by both scales, e.g. table2_1's, decides nothing). A row belongs
+    to a scale when its run_id is in the scale's current grid; when no row of an
+    experiment matches its grid (paths expanded elsewhere), the image size decides."""
+    out = {s: [] for s in SCALES}
+    if df is None or df.empty:
+        return out
+    for name in (names if names is not None else T.names()):
+        ids = {s: T.expected_run_ids(name, s, results) or set() for s in SCALES}
+        sizes = {s: T.scale_size(name, s, results) for s in SCALES}
+        for s in SCALES:
+            rows = T.select(df, name, s, status="ok", results=results)
+            if rows.empty:
+                continue
+            mine = rows["run_id"].isin(ids[s])
+            if mine.any():
+                others = set().union(*(ids[o] for o in _other(s)))
+                if (mine & ~rows["run_id"].isin(others)).any():
+                    out[s].append(name)
+            elif sizes[s] is not None and all(sizes[o] != sizes[s] for o in _other(s)):
+                out[s].append(name)
+    return out
+
+
+def existing(folder_) -> dict | None:
+    """What the report in ``folder_`` holds: ``{"scale", "with_data": set of experiments
+    with runs, "runs"}``; None when there is no report."""
+    d = Path(folder_)
+    man = d / MANIFEST
+    if man.is_file():
+        try:
+            doc = json.loads(man.read_text())
+            exps = doc.get("experiments") or {}
+            with_data = {n for n, e in exps.items() if int(e.get("runs", 0)) > 0}
+            return {"scale": doc.get("scale"), "with_data": with_data,
+                    "runs": sum(int(e.get("runs", 0)) for e in exps.values())}
+        except (ValueError, TypeError, AttributeError):
+            pass
+    index = d / "index.md"
+    if not index.is_file():
+        return None
+    m = re.search(r"\(scale: (\w+)\)", index.read_text(errors="replace")[:2000])
+    with_data, runs = set(), 0
+    for page in d.glob("*.md"):
+        if page.stem in ("index", "panels"):
+            continue
+        text = page.read_text(errors="replace")
+        if "NO DATA" in text:
+            continue
+        r = re.search(r"Runs: (\d+) ok", text)
+        if r and int(r.group(1)) > 0:
+            with_data.add(page.stem)
+            runs += int(r.group(1))
+    return {"scale": m.group(1) if m else None, "with_data": with_data, "runs": runs}
+
+
+def _names(xs, k=4):
+    xs = sorted(xs)
+    return ", ".join(xs[:k]) + (f" and {len(xs) - k} more" if len(xs) > k else "")
+
+
+def check(folder_, scale, runs: dict, results, force=False) -> None:
+    """Raise :class:`ReportRefused` (one line) when writing the ``scale`` report with
+    ``runs`` (``{experiment: ok runs}``) into ``folder_`` would destroy data."""
+    if force:
+        return
+    old = existing(folder_)
+    if not old or not old["with_data"]:
+        return
+    where = str(folder_).rstrip("/") + "/"
+    if old["scale"] and old["scale"] != scale:
+        raise ReportRefused(
+            f"psbench-report: refusing to write the {scale}-scale report into {where}: it "
+            f"holds a {old['scale']}-scale report ({old['runs']} runs); use --out "
+            f"another folder or --force")
+    lost = [n for n in old["with_data"] if n in runs and runs[n] == 0]
+    if lost and not any(runs.values()):
+        raise ReportRefused(
+            f"psbench-report: refusing to overwrite {where} ({old['scale'] or scale}-scale "
+            f"report, {old['runs']} runs): the store {results} holds no {scale}-scale runs; "
+            f"run `psbench +experiment=NAME scale={scale}` first, or --force")
+    if lost:
+        raise ReportRefused(
+            f"psbench-report: refusing to overwrite {where}: its {scale}-scale report has runs "
+            f"of {len(lost)} experiment(s) the store {results} lacks at that scale "
+            f"({_names(lost)}); run `psbench +experiment=NAME scale={scale}` for them, use "
+            f"--out another folder, or --force")
+
+
+def manifest(scale, results, summaries, generated) -> str:
+    """Text of ``report.json``: the scale and, per experiment, runs and verdict counts."""
+    exps = {s["experiment"]: {"runs": int(s["ok"]), "failed": int(s["failed"]),
+                              "SUPPORTED": int(s["supported"]),
+                              "NOT SUPPORTED": int(s["not_supported"]),
+                              "INCONCLUSIVE": int(s["inconclusive"])} for s in summaries}
+    tot = {k: sum(e[k] for e in exps.values())
+           for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")}
+    return json.dumps({"scale": scale, "store": str(results), "generated": generated,
+                       "verdicts": tot, "experiments": exps}, indent=1) + "\n"
