@@ -10,8 +10,10 @@ that iteration, and the working arrays are compacted as pixels drop out.
 The M-estimators (Huber 1964; Beaton & Tukey 1974; Holland & Welsch, "Robust
 regression using iteratively reweighted least-squares", Commun. Stat. 6, 1977) share
 :func:`m_estimate`: weights w(u) of the standardised residual u = r / (c * sigma), with
-the scale sigma re-estimated at every iteration as 1.4826 * median |r| over the pixel's
-valid observations (the normalised median absolute deviation, MAD).
+the per-pixel scale sigma = 1.4826 * median |r| over the pixel's valid observations
+(the normalised median absolute deviation, MAD) of a high-breakdown start, held
+fixed by default (MM-estimation: V. J. Yohai, "High breakdown-point and high
+efficiency robust estimates for regression", Ann. Statist. 15, 1987).
 """
 from __future__ import annotations
 
@@ -26,6 +28,8 @@ __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
 #: starting solutions of the M-estimators
 START = ("lts", "trim", "ls")
+#: scale policies of the M-estimators
+SCALES = ("fixed", "update")
 
 
 @dataclass
@@ -123,7 +127,8 @@ def irls(px: Pixels, b0, update, *, n_iter, tol, state=None, want_inverse=False)
             break
         if done.mean() >= 0.25:  # compact the working set
             keep = ~done
-            sel, I, V, b = sel[keep], I[keep], V[keep], b[keep]
+            sel, I, b = sel[keep], I[keep], b[keep]
+            V = np.broadcast_to(np.True_, I.shape) if px.all_valid else V[keep]
             st = {key: v[keep] for key, v in st.items()}
             done = np.zeros(sel.size, dtype=bool)
     return out_b, out_w, out_it, out_conv, out_st
@@ -148,15 +153,30 @@ class MOptions(IterOptions):
         re-estimated at every iteration none of the objectives is convex, so the
         start matters: from a poor start the MAD scale inflates and IRLS settles
         near least squares.
+    scale : {"fixed", "update"}, default "fixed"
+        The per-pixel robust scale sigma = 1.4826 * median |r| (over the pixel's valid
+        observations): "fixed" takes it once from the start's residuals and keeps it
+        (MM-estimation: a high-breakdown start and scale, then an efficient
+        M-step); "update" re-estimates it from the current residuals at every
+        iteration (Holland & Welsch), which lets it inflate on heavily corrupted
+        pixels. Measured on DiLiGenT and the synthetic scenes "fixed" is as accurate
+        or better, and cheaper (no per-iteration median).
+    tol : float, default 1e-3
+        As in :class:`IterOptions`; 1e-3 (a change of ~0.06 degrees) gave the same
+        normals as 1e-4 to 0.01 degrees on DiLiGenT and the synthetic scenes, in
+        ~40 % less time.
     """
 
     c: float | None = None
     start: str = "lts"
+    scale: str = "fixed"
+    tol: float = 1e-3
 
     def __post_init__(self):
         super().__post_init__()
         check_number(self.c, "c", lo=0, lo_open=True, allow_none=True)
         check_choice(self.start, START, "start")
+        check_choice(self.scale, SCALES, "scale")
 
 
 def robust_scale(r, V, all_valid, floor):
@@ -197,7 +217,7 @@ def start_solution(px: Pixels, start: str):
 
 
 def m_estimate(problem, options: MOptions, *, name, weight, c_default):
-    """IRLS M-estimate with a per-pixel MAD scale (see the module docstring).
+    """IRLS M-estimate with a per-pixel robust scale (see the module docstring).
 
     ``weight(u)`` maps standardised residuals u = r / (c sigma) (float32, modified in
     place allowed) to weights in [0, 1]. The Fit carries the final weights and the
@@ -207,24 +227,27 @@ def m_estimate(problem, options: MOptions, *, name, weight, c_default):
     c = np.float32(options.c if options.c is not None else c_default)
     floor = np.float32(1e-5 * px.scale)
     all_valid = px.all_valid
+    rescale = options.scale == "update"
 
     def update(r, V, st):
-        sigma = robust_scale(r, V, all_valid, floor)
-        st["sigma"] = sigma
-        u = r / (c * sigma)[:, None]
+        if rescale:
+            st["sigma"] = robust_scale(r, V, all_valid, floor)
+        u = r / (c * st["sigma"])[:, None]
         w = weight(u)
         if not all_valid:
             w *= V
         return w
 
     b0 = start_solution(px, options.start)
-    state = {"sigma": np.zeros(px.n, dtype=np.float32)}
+    # the scale of the start's residuals (fixed: MM-estimation; "update": re-estimated
+    # from the current residuals at every iteration)
+    state = {"sigma": robust_scale(px.I - b0 @ px.S32.T, px.V, all_valid, floor)}
     b, w, its, conv, st = irls(px, b0, update, n_iter=options.n_iter, tol=options.tol,
                                state=state)
     r = px.I - b @ px.S32.T
     inlier = px.V & (np.abs(r) <= (c * st["sigma"])[:, None])
     return px.fit(name, b, valid=inlier, weights=weights_out(w, px.V), iterations=its,
                   converged=conv, n_iter=options.n_iter,
-                  info={"c": float(c), "start": options.start,
+                  info={"c": float(c), "start": options.start, "scale": options.scale,
                         "scale_median": float(np.median(st["sigma"])) if px.n else 0.0})
 

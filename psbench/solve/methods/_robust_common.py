@@ -55,12 +55,16 @@ class Pixels:
         vflat = np.asarray(problem.valid, dtype=bool).reshape(k, -1)
         if self.full:
             self.I = np.ascontiguousarray(flat.T, dtype=np.float32)
-            self.V = np.ascontiguousarray(vflat.T)
         else:
             self.I = np.ascontiguousarray(flat[:, self.idx].T, dtype=np.float32)
-            self.V = np.ascontiguousarray(vflat[:, self.idx].T)
-        self.all_valid = bool(self.V.all())
-        self.m = np.full(self.I.shape[0], k) if self.all_valid else self.V.sum(axis=1)
+        n = self.I.shape[0]
+        self.all_valid = bool(vflat.all()) if self.full else bool(vflat[:, self.idx].all())
+        if self.all_valid:  # a read-only view: no (n, k) copy
+            self.V = np.broadcast_to(np.True_, (n, k))
+            self.m = np.full(n, k)
+        else:
+            self.V = np.ascontiguousarray(vflat.T if self.full else vflat[:, self.idx].T)
+            self.m = self.V.sum(axis=1)
         self.S = problem.S
         self.S32 = self.S.astype(np.float32)
         self.outer = _outer(self.S)
@@ -190,13 +194,24 @@ def wls(I, w, px, *, fallback=None, want_inverse=False):
         Non-singular pixels.
     inv : (n, 6) float32, only with ``want_inverse``
     """
-    a = w @ px.outer                      # (n, 6)
-    r = (w * I) @ px.S32                  # (n, 3)
-    cof, det, ok = sym3_inverse(a)
-    inv_det = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0).astype(np.float32)
-    c00, c01, c02, c11, c12, c22 = cof.T
-    r0, r1, r2 = r.T
-    b = np.empty_like(r)
+    # (6, n) and (3, n) layouts keep the closed-form 3x3 algebra on contiguous rows
+    a = px.outer.T @ w.T                        # (6, n)
+    wi = np.multiply(w, I)
+    r = px.S32.T @ wi.T                         # (3, n)
+    del wi
+    a00, a01, a02, a11, a12, a22 = a
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    tr = a00 + a11 + a22
+    ok = np.abs(det) > 1e-6 * tr * tr * tr
+    inv_det = np.divide(np.float32(1), det, out=np.zeros_like(det), where=ok)
+    r0, r1, r2 = r
+    b = np.empty((I.shape[0], 3), dtype=np.float32)
     b[:, 0] = (c00 * r0 + c01 * r1 + c02 * r2) * inv_det
     b[:, 1] = (c01 * r0 + c11 * r1 + c12 * r2) * inv_det
     b[:, 2] = (c02 * r0 + c12 * r1 + c22 * r2) * inv_det
@@ -208,8 +223,9 @@ def wls(I, w, px, *, fallback=None, want_inverse=False):
         else:
             b[bad] = fallback[bad]
     if want_inverse:
-        cof *= inv_det[:, None]
-        return b, ok, cof
+        inv = np.stack([c00, c01, c02, c11, c12, c22], axis=1)
+        inv *= inv_det[:, None]
+        return b, ok, inv
     return b, ok
 
 

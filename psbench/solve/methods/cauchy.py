@@ -1,4 +1,4 @@
-"""``cauchy``: the Cauchy (Lorentzian) M-estimator by IRLS with a per-pixel MAD scale.
+"""``cauchy``: the Cauchy (Lorentzian) M-estimator by IRLS with a per-pixel robust (MAD) scale.
 
 rho(u) = log(1 + u^2) / 2, u = r / (c sigma): redescending influence (an outlier's pull
 decreases as it moves away), non-convex but smooth. IRLS weight w(u) = 1 / (1 + u^2).
@@ -26,7 +26,8 @@ C_DEFAULT = 2.385
 @dataclass
 class CauchyOptions(MOptions):
     """Options of ``cauchy``: ``c`` (None = 2.385, 95 % Gaussian efficiency),
-    ``start`` ("lts"), ``n_iter`` (100), ``tol`` (1e-4) -- see :class:`MOptions` --
+    ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
+    :class:`~psbench.solve.methods._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 

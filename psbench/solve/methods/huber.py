@@ -1,4 +1,4 @@
-"""``huber``: Huber's M-estimator by IRLS with a per-pixel MAD scale.
+"""``huber``: Huber's M-estimator by IRLS with a per-pixel robust (MAD) scale.
 
 rho(u) = u^2 / 2 for |u| <= 1 and |u| - 1/2 beyond, u = r / (c sigma): quadratic for
 small residuals and linear for large ones (convex for a fixed scale); it bounds the
@@ -27,7 +27,8 @@ C_DEFAULT = 1.345
 @dataclass
 class HuberOptions(MOptions):
     """Options of ``huber``: ``c`` (None = 1.345, 95 % Gaussian efficiency),
-    ``start`` ("lts"), ``n_iter`` (100), ``tol`` (1e-4) -- see :class:`MOptions` --
+    ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
+    :class:`~psbench.solve.methods._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 

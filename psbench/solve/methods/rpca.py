@@ -25,7 +25,10 @@ exact recovery of corrupted low-rank matrices", UIUC tech. rep. UILU-ENG-09-2215
 2009 (arXiv:1009.5055); lam = 1 / sqrt(max(n, k)): E. Candès, X. Li, Y. Ma and
 J. Wright, "Robust principal component analysis?", J. ACM 58(3), 2011.
 
-Needs at least 4 images (with 3 the rank-3 part explains any data).
+Needs at least 4 images (with 3 the rank-3 part explains any data) and a dense set of
+observations: where a mask leaves too few per pixel for matrix completion (e.g. the
+literal Th on small synthetic scenes drops ~75 %), the recovered part has rank < 3;
+rpca then warns and returns the masked least-squares solution (``info["fallback"]``).
 """
 from __future__ import annotations
 
@@ -58,7 +61,8 @@ class RPCAOptions(Options):
         the plain nuclear-norm solution (whatever rank the thresholding leaves).
     lam : float or None, default None
         Weight of ||E||_1; None: :func:`default_lam` (1 / sqrt(max(n, k)) for an
-        n-pixel, k-image matrix, raised to 3 rank / sqrt(n k) when k is small). > 0.
+        n-pixel, k-image matrix, raised to the coherence level of D's rank-r part
+        where that is higher, as for small k). > 0.
     n_iter : int, default 200
         Maximum ALM iterations (>= 1).
     tol : float, default 1e-5
@@ -140,17 +144,26 @@ def _svt(X, tau, rank, Q=None):
     return X @ P, keep, Q
 
 
-def default_lam(n, k, rank):
-    """max(1 / sqrt(max(n, k)), 3 r / sqrt(n k)), r = ``rank`` (3 when None).
+def default_lam(D, V, s, rank):
+    """Default weight of ||E||_1: max(1 / sqrt(max(n, k)), q99 |U_r V_r^T|).
 
-    The first term is the universal choice of Candès et al. (2011). Photometric stereo
-    matrices are very tall (n pixels >> k images), and for small k it falls below the
-    largest entry of U V^T of a rank-r matrix (about mu r / sqrt(n k), incoherence
-    mu ~ 3), the level under which even clean Lambertian data are not recovered
-    exactly (part of D moves into E); the second term keeps lam above it.
+    The first term is the universal choice of Candès et al. (2011). Exact recovery of
+    a clean low-rank D = U S V^T needs lam >= ||U V^T||_inf (then U V^T certifies
+    E = 0 as optimal). Photometric stereo matrices are very tall (n pixels >> k
+    images) and for small k that level exceeds 1 / sqrt(n), so even clean Lambertian
+    data would leak into E; the second term, the 99th percentile of |U_r V_r^T| of
+    the rank-r approximation of D (the percentile ignores the few rows made coherent
+    by outliers), keeps lam above it. ``V`` (k, r) and ``s`` (r,) are D's leading
+    right singular vectors and values.
     """
-    r = 3 if rank is None else rank
-    return max(1.0 / np.sqrt(max(n, k)), 3.0 * r / np.sqrt(float(n) * k))
+    n, k = D.shape
+    lam = 1.0 / np.sqrt(max(n, k))
+    keep = s > 0
+    if keep.any():
+        U = (D @ V[:, keep].astype(np.float32)) / s[keep].astype(np.float32)
+        M = np.abs(U @ V[:, keep].T.astype(np.float32))
+        lam = max(lam, float(np.percentile(M, 99)))
+    return lam
 
 
 def rpca(problem, options: RPCAOptions):
@@ -166,7 +179,6 @@ def rpca(problem, options: RPCAOptions):
     n = px.n
     V = px.V
     D = np.where(V, px.I, np.float32(0))
-    lam = np.float32(options.lam if options.lam is not None else default_lam(n, k, options.rank))
     norm_d = float(np.linalg.norm(D))
     if norm_d == 0.0:
         return px.fit("rpca", np.zeros((n, 3), np.float32), valid=V, iterations=0,
@@ -177,6 +189,10 @@ def rpca(problem, options: RPCAOptions):
     if options.rank is not None:
         q = min(k, options.rank + 2)
         Q = np.ascontiguousarray(Vk[:, ::-1][:, :q], dtype=np.float32)
+    r0 = 3 if options.rank is None else min(options.rank, k)
+    lead = Vk[:, ::-1][:, :r0]
+    lam = np.float32(options.lam if options.lam is not None else
+                     default_lam(D, lead, np.sqrt(np.maximum(ev[::-1][:r0], 0.0)), r0))
     Y = D / np.float32(max(norm_two, float(np.abs(D).max()) / lam))
     A = np.zeros_like(D)
     E = np.zeros_like(D)
@@ -203,14 +219,24 @@ def rpca(problem, options: RPCAOptions):
         if crit <= options.tol:
             converged = True
             break
+    info = {"rank": int(rank), "lam": float(lam), "residual": crit}
+    if rank < min(3, k):
+        # the observations do not determine a rank-3 part (e.g. a mask left too few
+        # per pixel for matrix completion): say so and use masked least squares
+        msg = (f"rpca: the low-rank part has rank {rank} < 3 (observed fraction "
+               f"{V.mean():.0%}); falling back to masked least squares")
+        warnings.warn(msg, RuntimeWarning, stacklevel=2)
+        info["warnings"] = [msg]
+        info["fallback"] = "ls"
+        return px.fit("rpca", px.start(), valid=V, iterations=it, converged=False,
+                      n_iter=options.n_iter, info=info)
     P = np.linalg.pinv(px.S).astype(np.float32)
     b = A @ P.T
     Eo = np.where(V, E, np.float32(0))
     sigma = robust_scale(Eo, V, px.all_valid, np.float32(1e-5 * px.scale))
     inlier = V & (np.abs(Eo) <= np.float32(options.inlier_k) * sigma[:, None])
     return px.fit("rpca", b, valid=inlier, iterations=it, converged=converged,
-                  n_iter=options.n_iter,
-                  info={"rank": int(rank), "lam": float(lam), "residual": crit})
+                  n_iter=options.n_iter, info=info)
 
 
 METHOD = Method(name="rpca", func=rpca, options=RPCAOptions,

@@ -7,14 +7,17 @@ squares solution on the rest. This is the rank-based ("order statistics") rule o
 robust photometric stereo: shadows are the darkest and highlights the brightest
 observations of a pixel whatever its albedo, so no threshold in intensity units is
 needed -- unlike the thesis's Th mask, whose bounds come from each image's range.
-It is the classic rule of four-source photometric stereo generalised to k images
-(Coleman & Jain, "Obtaining 3-dimensional shape of textured and specular surfaces
-using four-source photometry", CGIP 18, 1982, drop the brightest of four; Rushmeier,
-Taubin & Guéziec, "Applying shape from lighting variation to bump map capture",
-EGWR 1997, drop the brightest and the darkest of five) and is the trimmed
-least-squares estimator of robust statistics (Rousseeuw & Leroy, "Robust Regression
-and Outlier Detection", 1987) with the ordering taken on the observations, not on the
-residuals, so it needs no starting solution and no iteration.
+It is the trimmed least-squares estimator of robust statistics with the ordering
+taken on the observations, not on the residuals, so it needs no starting solution and
+no iteration.
+
+Sources: the rule of four-source photometric stereo generalised to k images
+(E. N. Coleman and R. Jain, "Obtaining 3-dimensional shape of textured and specular
+surfaces using four-source photometry", CGIP 18, 1982, drop the brightest of four;
+H. Rushmeier, G. Taubin and A. Guéziec, "Applying shape from lighting variation to
+bump map capture", EGWR 1997, drop the brightest and the darkest of five); trimmed
+least squares: P. J. Rousseeuw and A. M. Leroy, "Robust Regression and Outlier
+Detection", Wiley, 1987.
 """
 from __future__ import annotations
 
@@ -80,11 +83,24 @@ def trim_valid(px: Pixels, dark: float, bright: float) -> np.ndarray:
         if nd == 0 and nb == 0:
             return V.copy()
         s = np.sort(I, axis=1)
-        keep = np.ones((n, k), dtype=bool)
-        if nd:
-            keep &= I > s[:, nd - 1:nd]
-        if nb:
+        if nd and nb:
+            keep = I > s[:, nd - 1:nd]
             keep &= I < s[:, k - nb:k - nb + 1]
+        elif nd:
+            keep = I > s[:, nd - 1:nd]
+        else:
+            keep = I < s[:, k - nb:k - nb + 1]
+        # only a tie with a dropped value can leave fewer than the requested count
+        tied = np.zeros(n, dtype=bool)
+        if nd:
+            tied |= s[:, nd - 1] == s[:, nd]
+        if nb:
+            tied |= s[:, k - nb - 1] == s[:, k - nb]
+        rows = np.flatnonzero(tied)
+        short = rows[keep[rows].sum(axis=1) < 3]
+        if short.size:
+            keep[short] = _rank_window(I[short], V[short], px.m[short], dark, bright)
+        return keep
     else:
         m = px.m
         nd, nb = _counts(m, dark, bright)
@@ -98,14 +114,17 @@ def trim_valid(px: Pixels, dark: float, bright: float) -> np.ndarray:
     # ties with a dropped value may leave fewer than three: exact rank window there
     short = np.flatnonzero(keep.sum(axis=1) < np.minimum(3, px.m))
     if short.size:
-        Vs = V[short]
-        ms = px.m[short]
-        nds, nbs = _counts(ms, dark, bright)
-        order = np.argsort(np.where(Vs, I[short], np.float32(np.inf)), axis=1, kind="stable")
-        rank = np.empty_like(order)
-        np.put_along_axis(rank, order, np.arange(k)[None, :].repeat(short.size, 0), 1)
-        keep[short] = Vs & (rank >= nds[:, None]) & (rank < (ms - nbs)[:, None])
+        keep[short] = _rank_window(I[short], V[short], px.m[short], dark, bright)
     return keep
+
+
+def _rank_window(I, V, m, dark, bright):
+    """Exact rank window (ties broken by image order) for a few rows."""
+    nd, nb = _counts(m, dark, bright)
+    order = np.argsort(np.where(V, I, np.float32(np.inf)), axis=1, kind="stable")
+    rank = np.empty_like(order)
+    np.put_along_axis(rank, order, np.broadcast_to(np.arange(I.shape[1]), order.shape), 1)
+    return V & (rank >= nd[:, None]) & (rank < (m - nb)[:, None])
 
 
 def trim(problem, options: TrimOptions):

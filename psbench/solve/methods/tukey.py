@@ -1,4 +1,4 @@
-"""``tukey``: Tukey's biweight M-estimator by IRLS with a per-pixel MAD scale.
+"""``tukey``: Tukey's biweight M-estimator by IRLS with a per-pixel robust (MAD) scale.
 
 rho(u) = (1 - (1 - u^2)^3) / 6 for |u| < 1 and 1/6 beyond, u = r / (c sigma): hard
 redescending -- observations beyond c sigma get weight 0 and no influence at all.
@@ -27,7 +27,8 @@ C_DEFAULT = 4.685
 @dataclass
 class TukeyOptions(MOptions):
     """Options of ``tukey``: ``c`` (None = 4.685, 95 % Gaussian efficiency),
-    ``start`` ("lts"), ``n_iter`` (100), ``tol`` (1e-4) -- see :class:`MOptions` --
+    ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
+    :class:`~psbench.solve.methods._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 
