@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base import Options, check_choice, check_int, check_number
-from ._robust_common import Pixels, masked_median, weights_out, wls
+from ._robust_common import Pixels, masked_median, wls
 
 __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
@@ -66,8 +66,9 @@ def irls(px: Pixels, b0, update, *, n_iter, tol, state=None, want_inverse=False)
         Starting solution.
     update : callable
         ``update(r, V, st) -> w``: weights (n_w, k) float32 (0 where ``V`` is False)
-        from the residuals r = I - S b (n_w, k) of the current working set; ``st`` is
-        a dict of per-pixel arrays (leading axis n_w) the update may read and write.
+        from the residuals r = I - S b (n_w, k) of the current working set (a reused
+        buffer: the update may overwrite it and return it as ``w``); ``st`` is a dict
+        of per-pixel arrays (leading axis n_w) the update may read and write.
     n_iter : int
     tol : float
     state : dict of (n, ...) arrays, optional
@@ -100,13 +101,18 @@ def irls(px: Pixels, b0, update, *, n_iter, tol, state=None, want_inverse=False)
     floor = np.float32(1e-6 * px.scale)
     tol = np.float32(tol)
     St = px.S32.T
+    buf = np.empty((n, k), dtype=np.float32)      # residuals, reused (no page faults)
+    scratch = np.empty((n, k), dtype=np.float32)
     for it in range(1, n_iter + 1):
-        r = I - b @ St
+        r = buf[:I.shape[0]]
+        np.matmul(b, St, out=r)
+        np.subtract(I, r, out=r)
         w = update(r, V, st)
         if want_inverse:
-            b_new, _, st["inv"] = wls(I, w, px, fallback=b, want_inverse=True)
+            b_new, _, st["inv"] = wls(I, w, px, fallback=b, want_inverse=True,
+                                      scratch=scratch[:I.shape[0]])
         else:
-            b_new, _ = wls(I, w, px, fallback=b)
+            b_new, _ = wls(I, w, px, fallback=b, scratch=scratch[:I.shape[0]])
         d = b_new - b
         step = np.sqrt(np.einsum("ij,ij->i", d, d))
         size = np.sqrt(np.einsum("ij,ij->i", b_new, b_new))
@@ -232,8 +238,8 @@ def m_estimate(problem, options: MOptions, *, name, weight, c_default):
     def update(r, V, st):
         if rescale:
             st["sigma"] = robust_scale(r, V, all_valid, floor)
-        u = r / (c * st["sigma"])[:, None]
-        w = weight(u)
+        r *= (np.float32(1) / (c * st["sigma"]))[:, None]   # u = r / (c sigma), in place
+        w = weight(r)
         if not all_valid:
             w *= V
         return w
@@ -246,7 +252,8 @@ def m_estimate(problem, options: MOptions, *, name, weight, c_default):
                                state=state)
     r = px.I - b @ px.S32.T
     inlier = px.V & (np.abs(r) <= (c * st["sigma"])[:, None])
-    return px.fit(name, b, valid=inlier, weights=weights_out(w, px.V), iterations=its,
+    # w(0) = 1 for every estimator: the weights are already in [0, 1]
+    return px.fit(name, b, valid=inlier, weights=w, iterations=its,
                   converged=conv, n_iter=options.n_iter,
                   info={"c": float(c), "start": options.start, "scale": options.scale,
                         "scale_median": float(np.median(st["sigma"])) if px.n else 0.0})

@@ -172,7 +172,7 @@ def sym3_inverse(a):
     return cof, det, ok
 
 
-def wls(I, w, px, *, fallback=None, want_inverse=False):
+def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
     """Per-pixel weighted least squares in the (n, k) layout.
 
     Parameters
@@ -186,6 +186,8 @@ def wls(I, w, px, *, fallback=None, want_inverse=False):
         independent weighted observations); default: plain least squares.
     want_inverse : bool
         Also return the inverse normal matrices (n, 6) (0 where singular).
+    scratch : (n, k) float32, optional
+        Buffer for w * I.
 
     Returns
     -------
@@ -196,9 +198,8 @@ def wls(I, w, px, *, fallback=None, want_inverse=False):
     """
     # (6, n) and (3, n) layouts keep the closed-form 3x3 algebra on contiguous rows
     a = px.outer.T @ w.T                        # (6, n)
-    wi = np.multiply(w, I)
+    wi = np.multiply(w, I, out=scratch)
     r = px.S32.T @ wi.T                         # (3, n)
-    del wi
     a00, a01, a02, a11, a12, a22 = a
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22

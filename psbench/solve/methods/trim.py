@@ -9,7 +9,10 @@ observations of a pixel whatever its albedo, so no threshold in intensity units 
 needed -- unlike the thesis's Th mask, whose bounds come from each image's range.
 It is the trimmed least-squares estimator of robust statistics with the ordering
 taken on the observations, not on the residuals, so it needs no starting solution and
-no iteration.
+no iteration. Its limits: it drops the fractions whatever the data (under noise it
+discards good observations and its choice follows the noise), and with few lights
+the middle ranks it keeps can be a poorly conditioned set of directions (DiLiGenT
+bear, 8 lights 12x4+32x4: 19.0 degrees against 9.5 for least squares).
 
 Sources: the rule of four-source photometric stereo generalised to k images
 (E. N. Coleman and R. Jain, "Obtaining 3-dimensional shape of textured and specular

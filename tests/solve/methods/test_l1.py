@@ -1,7 +1,6 @@
 """l1: least absolute deviations by IRLS."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from psbench import PsbenchError

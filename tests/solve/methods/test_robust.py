@@ -8,7 +8,7 @@ from psbench import PsbenchError
 from psbench.solve.methods.robust import RobustOptions
 
 from _acceptance import corrupted, errors
-from _robust_scenes import fit, lambert_scene, ne, problem, ts_scene
+from _robust_scenes import fit, lambert_scene, problem, ts_scene
 
 
 def test_sparse_corruptions():

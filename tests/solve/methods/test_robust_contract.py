@@ -10,7 +10,7 @@ import psbench as ps
 from psbench import PsbenchError, registry
 from psbench.solve.base import Fit, Options
 
-from _robust_scenes import ROBUST, corrupt, fit, lambert_scene, ne, problem, spec, ts_scene
+from _robust_scenes import ROBUST, fit, lambert_scene, ne, problem, spec, ts_scene
 
 ITERATIVE = ("l1", "sbl", "huber", "cauchy", "tukey", "robust", "rpca")
 
