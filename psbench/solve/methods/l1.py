@@ -29,11 +29,14 @@ __all__ = ["L1Options", "l1", "METHOD"]
 
 @dataclass
 class L1Options(IterOptions):
-    """Options of ``l1`` (plus ``n_iter`` = 100, ``tol`` = 1e-4 of
+    """Options of ``l1`` (plus ``tol`` = 1e-4 of
     :class:`~psbench.solve.methods._irls.IterOptions` and the mask-engine options).
 
     Parameters
     ----------
+    n_iter : int, default 300
+        Maximum IRLS iterations per pixel (IRLS for L1 converges linearly; the
+        stragglers are few pixels, so a high cap costs little).
     eps : float, default 1e-5
         Residuals below ``eps * problem.scale`` (the mean dynamic range) get the same
         weight, which keeps the reweighting finite at the interpolated observations;
@@ -44,6 +47,7 @@ class L1Options(IterOptions):
         > 0.
     """
 
+    n_iter: int = 300
     eps: float = 1e-5
     inlier_k: float = 3.0
 

@@ -39,7 +39,9 @@ method                 DiLiGenT cat/bear, 96 and  60 synthetic scenes (5 surface
 =====================  =========================  ==============================
 least squares          8.66                       10.36
 trim (25 %/25 %)       7.02                       10.65
-tukey                  6.83                       9.21
+l1                     7.34                       10.25
+cauchy                 7.04                       9.23
+tukey                  6.68                       9.27
 sbl                    6.68                       10.80
 rpca                   7.07                       8.95
 robust (c = 2.5)       6.67                       8.94

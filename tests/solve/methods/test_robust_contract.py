@@ -102,8 +102,9 @@ def test_composes_with_mask_validity(name, mask, ts):
 @pytest.mark.parametrize("name", ITERATIVE)
 def test_non_convergence_is_reported_and_warned(name):
     surf, lay, images = ts_scene(24, noise=0.05)
-    with pytest.warns(RuntimeWarning, match="did not converge"):
+    with pytest.warns(RuntimeWarning) as rec:
         f = fit(name, problem(images, lay, object_mask=surf.mask), quiet=False, n_iter=1)
+    assert any("did not converge" in str(w.message) for w in rec)
     conv = np.asarray(f.converged)
     assert not conv.all()
     assert np.isfinite(f.b).all()
