@@ -49,3 +49,20 @@ def test_falls_back_and_warns_when_too_few_observations():
 def test_option_ranges(kw):
     with pytest.raises(PsbenchError, match=next(iter(kw))):
         RPCAOptions(**kw)
+
+
+@pytest.mark.realdata
+def test_falls_back_when_completion_fails_on_real_data(diligent):
+    """The literal Th keeps the dimmer half of every DiLiGenT image: a systematic
+    missing pattern that completion cannot fill; rpca notices and says so."""
+    from psbench.harness.run import select_lights
+    from psbench.io import read_dataset
+
+    ds = read_dataset(diligent / "cat")
+    images, lights = select_lights(ds.images, ds.lights, "30x8+60x8")
+    valid = ps.solve(images, lights, mask="Th", object_mask=ds.mask).valid
+    p = problem(images, lights, valid=valid, object_mask=ds.mask)
+    f = fit("rpca", p)
+    assert f.info["fallback"] == "ls"
+    assert f.info["median_residual"] > f.info["median_residual_ls"]
+    np.testing.assert_allclose(f.b[ds.mask], p.start()[ds.mask], atol=1e-6)
