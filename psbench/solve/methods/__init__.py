@@ -1,0 +1,1 @@
+"""Estimators of rho * n registered as ``psbench.methods`` (one module per method)."""

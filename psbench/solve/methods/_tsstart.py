@@ -1,0 +1,182 @@
+"""Start solution and observation weights of tsfit: a pluggable robust step.
+
+The robust step is any registered method (``func(problem, options) -> Fit``), the
+masked least-squares solution (``"ls"``) or a private trimmed least squares
+(``"trimmed"``). ``"auto"`` is the registry's ``robust`` method when one is
+registered, else ``"trimmed"``.
+
+Its weights then get the highlights put back: a robust step drops the highlights
+together with the shadows, but tsfit models the highlight, so every observation
+that is not clearly darker than the model predicts gets weight 1; only the dark
+ones (cast shadows, and whatever else is much darker than the model) keep the
+robust step's weight (:func:`put_back`).
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..kernel import split
+from ._lm import _solve_spd
+
+__all__ = ["STARTS", "resolve_start", "start_weights", "trimmed"]
+
+#: start steps that are not registry methods
+STARTS = ("auto", "ls", "trimmed")
+#: fractions of each pixel's usable observations the trimmed start drops
+#: (darkest: shadows; brightest: highlights)
+TRIM_DARK, TRIM_BRIGHT = 0.25, 0.25
+
+
+def resolve_start(name):
+    """The start step actually used for ``name`` ("auto" resolved)."""
+    if name != "auto":
+        return name
+    from ... import registry
+    return "robust" if "robust" in registry.methods() else "trimmed"
+
+
+def trimmed(I, S, valid, *, dark=TRIM_DARK, bright=TRIM_BRIGHT):
+    """Per-pixel rank-trimmed least squares on gathered pixels.
+
+    Drops the ``dark`` darkest and ``bright`` brightest fractions of each pixel's
+    usable observations (``valid``; intensities divided by the light power), keeping
+    at least three, and solves least squares on the rest.
+
+    Parameters
+    ----------
+    I : (P, k) float32
+    S : (k, 3) float
+    valid : (P, k) bool
+
+    Returns
+    -------
+    b : (P, 3) float32
+    kept : (P, k) bool
+    """
+    P, k = I.shape
+    mu = np.linalg.norm(S, axis=1).astype(np.float32)
+    key = np.where(valid, I / np.where(mu > 0, mu, 1), np.inf)  # unusable sort last
+    order = np.argsort(key, axis=1, kind="stable")
+    rank = np.empty((P, k), dtype=np.int32)
+    np.put_along_axis(rank, order, np.arange(k, dtype=np.int32)[None, :], axis=1)
+    nv = valid.sum(axis=1)
+    lo = np.floor(dark * nv).astype(np.int32)
+    hi = nv - np.floor(bright * nv).astype(np.int32)
+    short = (hi - lo) < 3  # keep at least three: widen towards the bright end first
+    hi = np.where(short, np.minimum(nv, lo + 3), hi)
+    lo = np.where(short, np.maximum(0, hi - 3), lo)
+    kept = valid & (rank >= lo[:, None]) & (rank < hi[:, None])
+    return lsq3(I, S, kept.astype(np.float32)), kept
+
+
+def lsq3(I, S, w):
+    """Weighted least squares rho * n per pixel, (P, k) -> (P, 3) float32."""
+    S = np.asarray(S, dtype=np.float64)
+    outer = (S[:, :, None] * S[:, None, :]).reshape(len(S), 9)
+    A = (w.astype(np.float64) @ outer).reshape(-1, 3, 3)
+    r = (w * I).astype(np.float64) @ S
+    tr = np.trace(A, axis1=1, axis2=2)
+    A += (1e-9 * tr + 1e-30)[:, None, None] * np.eye(3)
+    x, ok = _solve_spd(A, r)
+    x[~ok | ~np.isfinite(x).all(1)] = 0.0
+    return x.astype(np.float32)
+
+
+def start_weights(problem, name, idx, I, valid):
+    """Run the start step ``name`` (already resolved) on the object pixels ``idx``.
+
+    Parameters
+    ----------
+    problem : Problem
+    name : str
+    idx : (P,) int
+        Flat indices of the object pixels.
+    I : (P, k) float32, valid : (P, k) bool
+        Their observations and the mask expression's validity.
+
+    Returns
+    -------
+    b : (P, 3) float32
+        rho * n of the start.
+    weights : (P, k) float32
+        The step's final weights (1 where it reports none), times ``valid``.
+    """
+    k = I.shape[1]
+    w = None
+    if name == "trimmed":
+        b, w = trimmed(I, problem.S, valid)
+    else:
+        if name == "ls":
+            bfull = problem.start()
+        else:
+            from ... import registry
+            spec = registry.get("methods", name, what="start")
+            fit = spec.func(problem, spec.options())
+            bfull = fit.b
+            wf = fit.weights if fit.weights is not None else fit.valid
+            if wf is not None:
+                w = np.asarray(wf, dtype=np.float32).reshape(k, -1)[:, idx].T
+        b = np.asarray(bfull, dtype=np.float32).reshape(-1, 3)[idx]
+    weights = valid.astype(np.float32) if w is None else np.asarray(w, np.float32) * valid
+    bad = ~np.isfinite(b).all(axis=1)
+    if bad.any():  # a start must never poison the fit
+        b[bad] = lsq3(I[bad], problem.S, valid[bad].astype(np.float32))
+    return b, weights
+
+
+def noise_sigma(I, pred, w):
+    """Per-image noise scale: 1.4826 x the median |I - pred| over the observations
+    with weight >= 0.5 (MAD; robust to the minority the model does not explain).
+
+    Returns (k,) float32; images without such observations get the median of the
+    others (0 if there are none at all).
+    """
+    r = np.abs(I - pred)
+    r[w < 0.5] = np.nan
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN images
+        sig = 1.4826 * np.nanmedian(r, axis=0)
+    ok = np.isfinite(sig)
+    fill = float(np.median(sig[ok])) if ok.any() else 0.0
+    return np.where(ok, sig, fill).astype(np.float32)
+
+
+def put_back(I, w, valid, pred, sigma, dark_ratio, dark_sigmas):
+    """Weights with the highlights put back, on gathered pixels.
+
+    A usable observation is dark (a shadow the model cannot explain) when the
+    model predicts more than ``dark_sigmas`` noise scales of light, and the
+    observation is below ``dark_ratio`` x the prediction and more than
+    ``dark_sigmas`` noise scales below it; dark ones keep the start step's weight
+    ``w``, every other usable observation gets weight 1. The noise margins matter:
+    dropping the observations that noise happened to push down (e.g. the negative
+    noise of a self-shadowed observation) would bias the fit.
+
+    Parameters
+    ----------
+    I, w : (P, k) float32
+        Observations and the start step's weights.
+    valid : (P, k) bool
+        The mask expression's validity (never overridden).
+    pred : (P, k) float32
+        The model's prediction (clamped at 0).
+    sigma : (k,) float32
+        Per-image noise scale (:func:`noise_sigma`).
+    """
+    margin = np.float32(dark_sigmas) * sigma
+    dark = (I < np.float32(dark_ratio) * pred) & (I < pred - margin) & (pred > margin)
+    return np.where(valid & ~dark, np.float32(1.0), w).astype(np.float32)
+
+
+def lambert_pred(b, S):
+    """Clamped Lambert prediction max(b . s_i, 0), (P, k) float32."""
+    pred = b @ np.asarray(S, dtype=np.float32).T
+    return np.maximum(pred, 0.0, out=pred)
+
+
+def unit(b):
+    """(P, 3) -> unit normals (0, 0, 1 where b is 0) and albedo."""
+    n, rho = split(b.reshape(-1, 1, 3))
+    return n.reshape(-1, 3), rho.reshape(-1)
