@@ -23,7 +23,7 @@ M_GRID = 8
 def _fit(L, I, w, n, rs_max, m_val, rs_val, cols, opt, *, grid=True):
     """Fit the sample at the given lobe (rs_val None: per pixel); returns the state
     (n, rd, rs, m) and the per-pixel cost."""
-    P = len(n)
+    P = n.shape[1]
     m = np.full(P, m_val, dtype=np.float32)
     rs_fixed = None if rs_val is None else np.full(P, rs_val, dtype=np.float32)
     if grid and opt.start_grid:
@@ -64,17 +64,17 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
         return (0.0 if share_rs else None), m0
     rng = np.random.default_rng(seed)
     sel = np.sort(rng.choice(cand, size=min(opt.m_sample, cand.size), replace=False))
-    Is, ws, ns, rsm = I[sel], w[sel], n0[sel], rs_max[sel]
+    Is, ws, ns, rsm = I[:, sel], w[:, sel], n0[:, sel], rs_max[sel]
     if opt.m_init is None and opt.m_mode != "fixed":
         sub = slice(0, None, max(1, sel.size // COARSE))
-        m0 = _coarse_m(L, Is[sub], ws[sub], ns[sub], rsm[sub], opt)
+        m0 = _coarse_m(L, Is[:, sub], ws[:, sub], ns[:, sub], rsm[sub], opt)
     if not share_rs and not share_m:
         return None, m0
     rs0 = None
     if share_rs:  # start: per-pixel rho_s where the lobe's peak region is sampled
         (n, rd, rs, m), _ = _fit(L, Is, ws, ns, rsm, m0, None, ("rs",), opt)
-        th = np.arccos(np.clip(n @ L.Ht, -1, 1))
-        seen = ((np.exp(-np.square(m0 * th)) > 0.5) & (ws > 0)).any(axis=1)
+        th = np.arccos(np.clip(L.h @ n, -1, 1))
+        seen = ((np.exp(-np.square(m0 * th)) > 0.5) & (ws > 0)).any(axis=0)
         rs0 = float(np.median(rs[seen] if seen.any() else rs))
         ns = n
     cols = (() if share_rs else ("rs",)) + (("m",) if opt.m_mode == "pixel" else ())

@@ -17,7 +17,6 @@ import warnings
 
 import numpy as np
 
-from ..kernel import split
 from ._lm import _solve_spd
 
 __all__ = ["STARTS", "resolve_start", "start_weights", "trimmed"]
@@ -46,41 +45,42 @@ def trimmed(I, S, valid, *, dark=TRIM_DARK, bright=TRIM_BRIGHT):
 
     Parameters
     ----------
-    I : (P, k) float32
+    I : (k, P) float32
     S : (k, 3) float
-    valid : (P, k) bool
+    valid : (k, P) bool
 
     Returns
     -------
-    b : (P, 3) float32
-    kept : (P, k) bool
+    b : (3, P) float32
+    kept : (k, P) bool
     """
-    P, k = I.shape
-    mu = np.linalg.norm(S, axis=1).astype(np.float32)
+    k, P = I.shape
+    mu = np.linalg.norm(S, axis=1).astype(np.float32)[:, None]
     key = np.where(valid, I / np.where(mu > 0, mu, 1), np.inf)  # unusable sort last
-    order = np.argsort(key, axis=1, kind="stable")
-    rank = np.empty((P, k), dtype=np.int32)
-    np.put_along_axis(rank, order, np.arange(k, dtype=np.int32)[None, :], axis=1)
-    nv = valid.sum(axis=1)
+    order = np.argsort(key, axis=0, kind="stable")
+    rank = np.empty((k, P), dtype=np.int32)
+    np.put_along_axis(rank, order, np.arange(k, dtype=np.int32)[:, None], axis=0)
+    nv = valid.sum(axis=0)
     lo = np.floor(dark * nv).astype(np.int32)
     hi = nv - np.floor(bright * nv).astype(np.int32)
     short = (hi - lo) < 3  # keep at least three: widen towards the bright end first
     hi = np.where(short, np.minimum(nv, lo + 3), hi)
     lo = np.where(short, np.maximum(0, hi - 3), lo)
-    kept = valid & (rank >= lo[:, None]) & (rank < hi[:, None])
+    kept = valid & (rank >= lo) & (rank < hi)
     return lsq3(I, S, kept.astype(np.float32)), kept
 
 
 def lsq3(I, S, w):
-    """Weighted least squares rho * n per pixel, (P, k) -> (P, 3) float32."""
+    """Weighted least squares rho * n per pixel, (k, P) -> (3, P) float32."""
     S = np.asarray(S, dtype=np.float64)
-    outer = (S[:, :, None] * S[:, None, :]).reshape(len(S), 9)
-    A = (w.astype(np.float64) @ outer).reshape(-1, 3, 3)
-    r = (w * I).astype(np.float64) @ S
-    tr = np.trace(A, axis1=1, axis2=2)
-    A += (1e-9 * tr + 1e-30)[:, None, None] * np.eye(3)
+    outer = (S[:, :, None] * S[:, None, :]).reshape(len(S), 9).T.astype(np.float32)
+    A = (outer @ w).astype(np.float64).reshape(3, 3, -1)
+    r = (S.T.astype(np.float32) @ (w * I)).astype(np.float64)
+    ridge = 1e-9 * (A[0, 0] + A[1, 1] + A[2, 2]) + 1e-30
+    for i in range(3):
+        A[i, i] += ridge
     x, ok = _solve_spd(A, r)
-    x[~ok | ~np.isfinite(x).all(1)] = 0.0
+    x[:, ~(ok & np.isfinite(x).all(0))] = 0.0
     return x.astype(np.float32)
 
 
@@ -93,17 +93,17 @@ def start_weights(problem, name, idx, I, valid):
     name : str
     idx : (P,) int
         Flat indices of the object pixels.
-    I : (P, k) float32, valid : (P, k) bool
+    I : (k, P) float32, valid : (k, P) bool
         Their observations and the mask expression's validity.
 
     Returns
     -------
-    b : (P, 3) float32
+    b : (3, P) float32
         rho * n of the start.
-    weights : (P, k) float32
+    weights : (k, P) float32
         The step's final weights (1 where it reports none), times ``valid``.
     """
-    k = I.shape[1]
+    k = I.shape[0]
     w = None
     if name == "trimmed":
         b, w = trimmed(I, problem.S, valid)
@@ -117,27 +117,33 @@ def start_weights(problem, name, idx, I, valid):
             bfull = fit.b
             wf = fit.weights if fit.weights is not None else fit.valid
             if wf is not None:
-                w = np.asarray(wf, dtype=np.float32).reshape(k, -1)[:, idx].T
-        b = np.asarray(bfull, dtype=np.float32).reshape(-1, 3)[idx]
+                w = np.asarray(wf, dtype=np.float32).reshape(k, -1)[:, idx]
+        b = np.ascontiguousarray(np.asarray(bfull, dtype=np.float32).reshape(-1, 3)[idx].T)
     weights = valid.astype(np.float32) if w is None else np.asarray(w, np.float32) * valid
-    bad = ~np.isfinite(b).all(axis=1)
+    bad = ~np.isfinite(b).all(axis=0)
     if bad.any():  # a start must never poison the fit
-        b[bad] = lsq3(I[bad], problem.S, valid[bad].astype(np.float32))
+        b[:, bad] = lsq3(I[:, bad], problem.S, valid[:, bad].astype(np.float32))
     return b, weights
+
+
+#: pixels per image used to estimate the noise scale
+SIGMA_PIXELS = 65536
 
 
 def noise_sigma(I, pred, w):
     """Per-image noise scale: 1.4826 x the median |I - pred| over the observations
-    with weight >= 0.5 (MAD; robust to the minority the model does not explain).
+    with weight >= 0.5 (MAD; robust to the minority the model does not explain), on
+    at most ``SIGMA_PIXELS`` evenly spaced pixels.
 
     Returns (k,) float32; images without such observations get the median of the
     others (0 if there are none at all).
     """
-    r = np.abs(I - pred)
-    r[w < 0.5] = np.nan
+    step = max(1, I.shape[1] // SIGMA_PIXELS)
+    r = np.abs(I[:, ::step] - pred[:, ::step])
+    r[w[:, ::step] < 0.5] = np.nan
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN images
-        sig = 1.4826 * np.nanmedian(r, axis=0)
+        sig = 1.4826 * np.nanmedian(r, axis=1)
     ok = np.isfinite(sig)
     fill = float(np.median(sig[ok])) if ok.any() else 0.0
     return np.where(ok, sig, fill).astype(np.float32)
@@ -156,27 +162,29 @@ def put_back(I, w, valid, pred, sigma, dark_ratio, dark_sigmas):
 
     Parameters
     ----------
-    I, w : (P, k) float32
+    I, w : (k, P) float32
         Observations and the start step's weights.
-    valid : (P, k) bool
+    valid : (k, P) bool
         The mask expression's validity (never overridden).
-    pred : (P, k) float32
+    pred : (k, P) float32
         The model's prediction (clamped at 0).
     sigma : (k,) float32
         Per-image noise scale (:func:`noise_sigma`).
     """
-    margin = np.float32(dark_sigmas) * sigma
+    margin = (np.float32(dark_sigmas) * sigma)[:, None]
     dark = (I < np.float32(dark_ratio) * pred) & (I < pred - margin) & (pred > margin)
     return np.where(valid & ~dark, np.float32(1.0), w).astype(np.float32)
 
 
 def lambert_pred(b, S):
-    """Clamped Lambert prediction max(b . s_i, 0), (P, k) float32."""
-    pred = b @ np.asarray(S, dtype=np.float32).T
+    """Clamped Lambert prediction max(s_i . b, 0), (k, P) float32."""
+    pred = np.asarray(S, dtype=np.float32) @ b
     return np.maximum(pred, 0.0, out=pred)
 
 
 def unit(b):
-    """(P, 3) -> unit normals (0, 0, 1 where b is 0) and albedo."""
-    n, rho = split(b.reshape(-1, 1, 3))
-    return n.reshape(-1, 3), rho.reshape(-1)
+    """(3, P) -> unit normals (0, 0, 1 where b is 0) (3, P) and albedo (P,)."""
+    rho = np.sqrt((b * b).sum(0))
+    ok = rho > 1e-6
+    n = np.where(ok, b / np.where(ok, rho, 1.0), np.float32([[0], [0], [1]]))
+    return n.astype(np.float32), np.where(ok, rho, 0.0).astype(np.float32)

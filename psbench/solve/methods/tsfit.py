@@ -92,14 +92,14 @@ class TsfitOptions(Options):
     m_max: float = 50.0
     rho_s_max: float = 10.0
     lm_max_iter: int = 100
-    lm_tol: float = 1e-5
+    lm_tol: float = 1e-4
     start: str = "auto"
     weights: str = "start"
     dark_ratio: float = 0.5
     dark_sigmas: float = 3.0
     refine: int = 1
     m_sample: int = 5000
-    start_grid: int = 256
+    start_grid: int = 64
 
     def __post_init__(self):
         super().__post_init__()
@@ -217,14 +217,15 @@ def tsfit(problem, options=None) -> Fit:
 
     obj = np.asarray(problem.object_mask, dtype=bool).reshape(-1)
     idx = np.flatnonzero(obj)
-    I = np.ascontiguousarray(images.reshape(k, -1)[:, idx].T, dtype=np.float32)
-    valid = np.ascontiguousarray(np.asarray(problem.valid, bool).reshape(k, -1)[:, idx].T)
+    I = np.ascontiguousarray(images.reshape(k, -1)[:, idx], dtype=np.float32)  # (k, P)
+    valid = np.asarray(problem.valid, dtype=bool).reshape(k, -1)[:, idx]
     lay = problem.lights
     L = _lm.Lights(lay.directions, lay.power)
     S = L.d.astype(np.float64) * L.mu[:, None]
 
     b0, w_start = start_weights(problem, start_name, idx, I, valid)
     n0, rd0 = unit(b0)
+    sigma = None
     if opt.weights == "start":
         pred = lambert_pred(b0, S)
         sigma = noise_sigma(I, pred, w_start)
@@ -233,10 +234,9 @@ def tsfit(problem, options=None) -> Fit:
         w = valid.astype(np.float32)
     timings["start"] = time.perf_counter() - t0
 
-    Imu = I / np.where(L.mu > 0, L.mu, 1)
-    top = np.max(np.where(w > 0, Imu, 0), axis=1)
+    top = np.max(np.where(w > 0, I / np.where(L.mu > 0, L.mu, 1)[:, None], 0), axis=0)
     rs_max = (opt.rho_s_max * top).astype(np.float32)
-    fitted = ((w > 0).sum(axis=1) >= MIN_OBS) & (rd0 > 0)
+    fitted = ((w > 0).sum(axis=0) >= MIN_OBS) & (rd0 > 0)
     f = np.flatnonzero(fitted)
 
     t1 = time.perf_counter()
@@ -253,17 +253,23 @@ def tsfit(problem, options=None) -> Fit:
     conv = np.ones(P, dtype=bool)
     cost = np.zeros(P)
     rs_fixed = None if rs_shared is None else rs[f]
+    If, wf = (I, w) if f.size == P else (I[:, f], w[:, f])
+    nf = n[:, f]
     if opt.start_grid:
-        n[f] = _lm.grid_start(L, I[f], w[f], n[f], m_shared, opt.start_grid, rs=rs_fixed)[0]
-    rd[f], rs[f] = _lm.init_rho(L, I[f], w[f], n[f], m[f], rs_max[f], rs=rs_fixed)
+        nf = _lm.grid_start(L, If, wf, nf, m_shared, opt.start_grid, rs=rs_fixed)[0]
+    rd[f], rs[f] = _lm.init_rho(L, If, wf, nf, m[f], rs_max[f], rs=rs_fixed)
+    n[:, f] = nf
     _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost)
+    if opt.start_grid:
+        _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
+                rs_shared)
     for _ in range(opt.refine if opt.weights == "start" else 0):
-        pred = _ts_pred(L, n, rd, rs, m)
+        pred = _lm.predict(L, n, rd, rs, m)
         sigma = noise_sigma(I, pred, w)
         w_new = put_back(I, w_start, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
-        changed = fitted & (w_new != w).any(axis=1)
+        changed = fitted & (w_new != w).any(axis=0)
         w = w_new
-        ok = changed & ((w > 0).sum(axis=1) >= MIN_OBS)
+        ok = changed & ((w > 0).sum(axis=0) >= MIN_OBS)
         if not ok.any():
             break
         _fit_subset(L, I, w, n, rd, rs, m, rs_max, np.flatnonzero(ok), cols, opt, iters,
@@ -271,10 +277,10 @@ def tsfit(problem, options=None) -> Fit:
     timings["fit"] = time.perf_counter() - t1
 
     # never return NaN: a pixel that went non-finite keeps its start
-    bad = ~(np.isfinite(n).all(1) & np.isfinite(rd) & np.isfinite(rs) & np.isfinite(m))
+    bad = ~(np.isfinite(n).all(0) & np.isfinite(rd) & np.isfinite(rs) & np.isfinite(m))
     keep = ~fitted | bad
     if keep.any():
-        n[keep], rd[keep], rs[keep] = n0[keep], rd0[keep], 0.0
+        n[:, keep], rd[keep], rs[keep] = n0[:, keep], rd0[keep], 0.0
         m[keep] = m_shared
         conv[bad] = False
     nconv = int((~conv).sum())
@@ -289,40 +295,62 @@ def tsfit(problem, options=None) -> Fit:
         return out.reshape(H, W)
 
     b = np.zeros((H * W, 3), dtype=np.float32)
-    b[idx] = n * rd[:, None]
+    b[idx] = (n * rd).T
     wfull = np.asarray(problem.valid, dtype=np.float32).reshape(k, -1).copy()
-    wfull[:, idx] = w.T
-    wsum = np.maximum(w.sum(axis=1), 1e-30)
+    wfull[:, idx] = w
+    wsum = np.maximum(w.sum(axis=0), 1e-30)
     info = dict(rho_s=rs_shared if rs_shared is not None else plane(rs),
                 m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
                 rms=plane(np.sqrt(cost / wsum)), start=start_name,
-                kept_start=plane(keep, False, bool), sigma=sigma if opt.weights == "start" else None,
+                kept_start=plane(keep, False, bool), sigma=sigma,
                 timings=dict(timings, total=time.perf_counter() - t0))
     return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
                converged=plane(conv, True, bool), info=info)
 
 
+#: pixels whose RMS residual exceeds this multiple of the median are searched again
+REPAIR = 2.0
+
+
+def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
+            rs_shared):
+    """Restart the worst-fitting pixels from the best normal of a hemisphere grid and
+    keep the lower cost (a start in the wrong basin ends with a high residual)."""
+    if f.size == 0:
+        return
+    rms = np.sqrt(cost[f] / np.maximum(w[:, f].sum(0), 1e-30))
+    sel = f[rms > REPAIR * np.median(rms)]
+    if sel.size == 0:
+        return
+    Is, ws = I[:, sel], w[:, sel]
+    rs_fixed = None if rs_shared is None else rs[sel]
+    ms = np.full(sel.size, m_shared, dtype=np.float32)
+    ns = _lm.grid_start(L, Is, ws, n[:, sel], m_shared, 4 * opt.start_grid, rs=rs_fixed)[0]
+    rds, rss = _lm.init_rho(L, Is, ws, ns, ms, rs_max[sel], rs=rs_fixed)
+    it, cv, c = _lm.fit(L, Is, ws, ns, rds, rss, ms, rs_max[sel], cols=cols, m_lo=opt.m_min,
+                        m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
+    iters[sel] += it
+    b = c < cost[sel]
+    pick = sel[b]
+    n[:, pick], rd[pick], rs[pick], m[pick] = ns[:, b], rds[b], rss[b], ms[b]
+    conv[pick], cost[pick] = cv[b], c[b]
+
+
 def _fit_subset(L, I, w, n, rd, rs, m, rs_max, sel, cols, opt, iters, conv, cost):
     """LM on the pixels ``sel`` (in place on the per-pixel arrays)."""
     if sel.size == 0:
         return
-    ns, rds, rss, ms = n[sel], rd[sel], rs[sel], m[sel]
-    it, cv, c = _lm.fit(L, I[sel], w[sel], ns, rds, rss, ms, rs_max[sel], cols=cols,
+    whole = sel.size == rd.size
+    pick = (lambda a: a) if whole else (lambda a: a[..., sel])
+    ns, rds, rss, ms = (pick(a).copy() for a in (n, rd, rs, m))
+    it, cv, c = _lm.fit(L, pick(I), pick(w), ns, rds, rss, ms, pick(rs_max), cols=cols,
                         m_lo=opt.m_min, m_hi=opt.m_max, max_iter=opt.lm_max_iter,
                         tol=opt.lm_tol)
-    n[sel], rd[sel], rs[sel], m[sel] = ns, rds, rss, ms
+    n[:, sel], rd[sel], rs[sel], m[sel] = ns, rds, rss, ms
     iters[sel] += it
     conv[sel] = cv
     cost[sel] = c
-
-
-def _ts_pred(L, n, rd, rs, m):
-    """The fitted model's prediction, (P, k) float32."""
-    c = n @ L.Dt
-    th = np.arccos(np.clip(n @ L.Ht, -1.0, 1.0))
-    E = np.exp(-np.square(th * m[:, None]))
-    return (rd[:, None] * c + rs[:, None] * E) * ((c > 0) * L.mu)
 
 
 METHOD = Method(name="tsfit", func=tsfit, options=TsfitOptions,
