@@ -55,10 +55,10 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
     rs : float or None
         Shared rho_s (None when ``opt.rho_s_mode == "pixel"``).
     m : float
-        Shared (or start) m.
+        Shared m (the start of a per-pixel m; ``m_init`` when fixed).
     """
     share_rs = opt.rho_s_mode == "shared"
-    share_m = opt.m_mode == "shared"
+    share_m = opt.m_mode != "fixed"  # a per-pixel m starts from the shared estimate
     m0 = float(opt.m_init) if opt.m_init is not None else float(np.sqrt(opt.m_min * opt.m_max))
     if cand.size == 0:
         return (0.0 if share_rs else None), m0
@@ -77,7 +77,7 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
         seen = ((np.exp(-np.square(m0 * th)) > 0.5) & (ws > 0)).any(axis=0)
         rs0 = float(np.median(rs[seen] if seen.any() else rs))
         ns = n
-    cols = (() if share_rs else ("rs",)) + (("m",) if opt.m_mode == "pixel" else ())
+    cols = () if share_rs else ("rs",)
     glob = (("rs",) if share_rs else ()) + (("m",) if share_m else ())
     state, c = _fit(L, Is, ws, ns, rsm, m0, rs0, cols, opt)
     total = float(c.sum())

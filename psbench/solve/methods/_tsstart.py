@@ -7,9 +7,10 @@ registered, else ``"trimmed"``.
 
 Its weights then get the highlights put back: a robust step drops the highlights
 together with the shadows, but tsfit models the highlight, so every observation
-that is not clearly darker than the model predicts gets weight 1; only the dark
-ones (cast shadows, and whatever else is much darker than the model) keep the
-robust step's weight (:func:`put_back`).
+that is not clearly darker than the model predicts gets weight 1 and the dark ones
+(cast shadows, and whatever else is much darker than the model) weight 0
+(:func:`put_back`). The step's weights also pick the inliers from which the noise
+scale is estimated (:func:`noise_sigma`).
 """
 from __future__ import annotations
 
@@ -149,21 +150,22 @@ def noise_sigma(I, pred, w):
     return np.where(ok, sig, fill).astype(np.float32)
 
 
-def put_back(I, w, valid, pred, sigma, dark_ratio, dark_sigmas):
+def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
     """Weights with the highlights put back, on gathered pixels.
 
     A usable observation is dark (a shadow the model cannot explain) when the
     model predicts more than ``dark_sigmas`` noise scales of light, and the
     observation is below ``dark_ratio`` x the prediction and more than
-    ``dark_sigmas`` noise scales below it; dark ones keep the start step's weight
-    ``w``, every other usable observation gets weight 1. The noise margins matter:
+    ``dark_sigmas`` noise scales below it. Dark ones get weight 0, every other
+    usable observation weight 1: the robust step's outliers that are bright
+    (highlights) come back, and shadows it missed go. The noise margins matter:
     dropping the observations that noise happened to push down (e.g. the negative
     noise of a self-shadowed observation) would bias the fit.
 
     Parameters
     ----------
-    I, w : (k, P) float32
-        Observations and the start step's weights.
+    I : (k, P) float32
+        Observations.
     valid : (k, P) bool
         The mask expression's validity (never overridden).
     pred : (k, P) float32
@@ -173,7 +175,7 @@ def put_back(I, w, valid, pred, sigma, dark_ratio, dark_sigmas):
     """
     margin = (np.float32(dark_sigmas) * sigma)[:, None]
     dark = (I < np.float32(dark_ratio) * pred) & (I < pred - margin) & (pred > margin)
-    return np.where(valid & ~dark, np.float32(1.0), w).astype(np.float32)
+    return (valid & ~dark).astype(np.float32)
 
 
 def lambert_pred(b, S):

@@ -63,12 +63,14 @@ class TsfitOptions(Options):
         usable observations), ``"ls"`` (the masked least-squares solution), or the
         name of any registered method.
     weights : {"start", "mask"}
-        "start": the start step's weights with the highlights put back: every usable
-        observation gets weight 1 unless it is dark, i.e. below ``dark_ratio`` times
-        the model's prediction *and* more than ``dark_sigmas`` noise scales below it
-        (the noise scale is estimated per image from the residuals, MAD); dark ones
-        keep the start's weight. "mask": exactly the mask expression's validity
-        (e.g. ``mask="Sh"``), nothing else.
+        "start": the start step's inliers with the highlights put back: every usable
+        observation gets weight 1 unless it is dark, i.e. the model predicts more
+        than ``dark_sigmas`` noise scales of light and the observation is below
+        ``dark_ratio`` times the prediction *and* more than ``dark_sigmas`` noise
+        scales below it (the noise scale is estimated per image from the start's
+        inliers, MAD); dark ones get weight 0. Decided first with the start's
+        Lambert prediction, then (``refine``) with the fitted model. "mask":
+        exactly the mask expression's validity (e.g. ``mask="Sh"``), nothing else.
     dark_ratio : float
         See ``weights``; in [0, 1]. 0 puts every observation back.
     dark_sigmas : float
@@ -98,7 +100,7 @@ class TsfitOptions(Options):
     dark_ratio: float = 0.5
     dark_sigmas: float = 3.0
     refine: int = 1
-    m_sample: int = 5000
+    m_sample: int = 2000
     start_grid: int = 64
 
     def __post_init__(self):
@@ -147,39 +149,47 @@ def tsfit(problem, options=None) -> Fit:
         \ \text{if}\ d_i \cdot n > 0,\ \text{else}\ 0, \qquad
         \theta_i = \arccos(h_i \cdot n).
 
-    Per pixel, tsfit minimises :math:`\sum_i w_i (I_i - f_i)^2` over the unit normal n
-    (two angles), :math:`\rho_d \ge 0`, :math:`0 \le \rho_s \le` ``rho_s_max`` times the
-    pixel's brightest used observation, and m in [``m_min``, ``m_max``] (shared by
-    all pixels by default). Self shadows are part of the model (f = 0 where
-    d_i . n <= 0); cast shadows are not, and are left out by the weights.
+    tsfit minimises, per pixel, :math:`\sum_i w_i (I_i - f_i)^2` over the unit normal
+    n (two angles), :math:`\rho_d \ge 0`, and, per pixel or shared by the whole
+    object (``rho_s_mode``, ``m_mode``; both shared by default),
+    :math:`0 \le \rho_s \le` ``rho_s_max`` times the pixel's brightest used
+    observation and m in [``m_min``, ``m_max``]. Self shadows are part of the model
+    (f = 0 where d_i . n <= 0); cast shadows are not, and are left out by the weights.
 
     Assumptions: distant lights (a layout's positions, if any, are ignored; the
     direction is the same at every pixel), orthographic view along +z, linear
     images, the Torrance–Sparrow form of Eq. 2.14 with a Gaussian lobe in the angle
-    between n and h_i (no Fresnel, geometric attenuation or 1 / (n . v) factor) and
-    the highlight switched off in self shadow, exactly as psbench renders it.
-    Noiseless scenes rendered that way are therefore fitted exactly.
+    between n and h_i (no Fresnel, geometric attenuation or 1 / (n . v) factor), the
+    highlight switched off in self shadow and both terms scaled by the light power,
+    exactly as :func:`psbench.render` renders it; so noiseless scenes rendered that
+    way are fitted exactly. Real materials follow it only approximately.
 
     Algorithm:
 
     1. **Start and weights.** A robust step (option ``start``; default the
        registered ``robust`` method, else a private rank-trimmed least squares)
        gives rho * n and per-observation weights; the highlights it dropped are put
-       back (``weights``, ``dark_ratio``), so only observations much darker than
-       predicted (cast shadows) stay out. The mask expression's validity
+       back (``weights``): every observation gets weight 1 unless it is clearly
+       darker than the model predicts (a cast shadow), by a noise scale estimated
+       per image (MAD of the residuals). The mask expression's validity
        (``problem.valid``, e.g. ``mask="Sh"``) always applies.
-    2. **Shared lobe width.** On ``m_sample`` random object pixels: the best of 8
-       log-spaced m values, then Gauss–Newton steps on m with every pixel's
-       unknowns projected out (Schur complement of the per-pixel normal equations),
-       each followed by a warm-started refit, accepted only if the total cost drops.
-    3. **Per-pixel fit.** Levenberg–Marquardt on all object pixels at once: per
-       pixel 4 unknowns (5 with ``lobe="pixel"``), batched normal equations solved by
-       Cholesky, Marquardt damping, steps clipped to the bounds. The normal moves on
-       the sphere: n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent basis at
-       the current n, so it stays unit and has no pole singularity. Pixels are
-       processed in cache-sized blocks; each iteration touches only the pixels not
-       yet converged (``lm_tol``), up to ``lm_max_iter``.
-    4. **Refine** (``refine`` rounds): the dark observations are re-decided against
+    2. **Shared lobe** (rho_s and/or m). On ``m_sample`` random object pixels: the
+       m of a log grid that explains the sample best, per-pixel fits, then
+       Gauss–Newton steps on the shared unknowns with every pixel's own unknowns
+       projected out (Schur complement of the per-pixel normal equations), each
+       followed by a warm-started refit and accepted only if the total cost drops.
+    3. **Global start.** Each pixel starts from the best of ``start_grid``
+       candidate normals (a hemisphere lattice; costs for all pixels at once by
+       matrix products, rho_d in closed form) and the robust start.
+    4. **Per-pixel fit.** Levenberg–Marquardt on all object pixels at once: 3 to 5
+       unknowns per pixel, batched normal equations solved by Cholesky, Marquardt
+       damping, an active set for unknowns at their bounds. The normal moves on the
+       sphere, n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent basis at the
+       current n, so it stays unit and has no pole singularity. Each iteration
+       visits only the pixels not yet converged (``lm_tol``), in cache-sized chunks,
+       up to ``lm_max_iter``. Pixels whose residual ends above twice the median
+       restart from a 4x finer grid and keep the better fit.
+    5. **Refine** (``refine`` rounds): the dark observations are re-decided with
        the fitted model instead of the Lambert start, and the pixels whose weights
        changed are refitted from their solution.
 
@@ -197,11 +207,13 @@ def tsfit(problem, options=None) -> Fit:
         ``b = rho_d * n`` (H, W, 3) float32 (0 outside the object); ``weights``
         (k, H, W) float32 the weights of the final fit (``valid`` = weights > 0);
         ``iterations`` (H, W) int32 LM iterations per pixel (all rounds);
-        ``converged`` (H, W) bool; ``info``: ``rho_s`` (H, W) float32, ``m`` (float
-        when shared or fixed, else (H, W) float32), ``m_shared``, ``rms`` (H, W)
-        weighted RMS residual of the fit, ``kept_start`` (H, W) bool, ``start`` (the
-        start step used), ``timings``. Non-converged pixels keep their best
-        estimate and raise a RuntimeWarning; no NaN is ever returned.
+        ``converged`` (H, W) bool; ``info``: ``rho_s`` and ``m`` (a float when shared
+        or fixed, else (H, W) float32), ``rms`` (H, W) weighted RMS residual of the
+        fit, ``kept_start`` (H, W) bool, ``start`` (the start step used), ``sigma``
+        (k,) the noise scales of the final weights (None with ``weights="mask"``),
+        ``timings`` (seconds per stage). Non-converged pixels keep their best
+        estimate (LM only accepts steps that lower the cost) and raise a
+        RuntimeWarning; no NaN is ever returned.
     """
     opt = options if options is not None else TsfitOptions()
     if not isinstance(opt, TsfitOptions):
@@ -229,7 +241,7 @@ def tsfit(problem, options=None) -> Fit:
     if opt.weights == "start":
         pred = lambert_pred(b0, S)
         sigma = noise_sigma(I, pred, w_start)
-        w = put_back(I, w_start, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
+        w = put_back(I, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
     else:
         w = valid.astype(np.float32)
     timings["start"] = time.perf_counter() - t0
@@ -266,7 +278,7 @@ def tsfit(problem, options=None) -> Fit:
     for _ in range(opt.refine if opt.weights == "start" else 0):
         pred = _lm.predict(L, n, rd, rs, m)
         sigma = noise_sigma(I, pred, w)
-        w_new = put_back(I, w_start, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
+        w_new = put_back(I, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
         ok = changed & ((w > 0).sum(axis=0) >= MIN_OBS)
