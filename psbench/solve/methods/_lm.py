@@ -219,7 +219,7 @@ def _step(L, I, w, n, rd, rs, m, rs_max, A, g, t1, t2, lam, cols, m_lo, m_hi, to
     step was taken) and ``small`` (the step is below ``tol`` in every unknown).
     """
     q = 3 + len(cols)
-    Ad, ga = A.copy(), g.copy()
+    Ad, ga = A.astype(np.float64), g.astype(np.float64)
     # Marquardt damping (scaled by the diagonal, floored for unknowns carrying no
     # information, e.g. m where rho_s = 0)
     diag = np.array([A[i, i] for i in range(q)])
@@ -293,8 +293,8 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     Iw, ww, rsmw = I, w, rs_max
     nw, rdw, rsw, mw = n, rd, rs, m
     cw = cost
-    A = np.empty((q, q, P))
-    g = np.empty((q, P))
+    A = np.empty((q, q, P), dtype=np.float32)  # float32 storage halves the memory
+    g = np.empty((q, P), dtype=np.float32)
     t1 = np.empty((3, P), dtype=np.float32)
     t2 = np.empty((3, P), dtype=np.float32)
     for lo in range(0, P, block):
@@ -354,10 +354,25 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     return iters, conv, cost
 
 
+def _chunks(P, k):
+    step = max(1024, BLOCK_ELEMS // max(k, 1))
+    return [slice(lo, min(P, lo + step)) for lo in range(0, P, step)]
+
+
 def init_rho(L, I, w, n, m, rs_max, rs=None):
     """Least-squares (rho_d, rho_s) for fixed n and m (2x2 per pixel, clipped to the
     bounds): a start that already accounts for the highlight. With ``rs`` given
-    (p,), only rho_d is solved."""
+    (p,), only rho_d is solved. Returns float32 (rd, rs), (p,) each."""
+    P = n.shape[1]
+    rd_out = np.empty(P, dtype=np.float32)
+    rs_out = np.empty(P, dtype=np.float32)
+    for s in _chunks(P, I.shape[0]):
+        rd_out[s], rs_out[s] = _init_rho(L, I[:, s], w[:, s], n[:, s], m[s], rs_max[s],
+                                         None if rs is None else rs[s])
+    return rd_out, rs_out
+
+
+def _init_rho(L, I, w, n, m, rs_max, rs):
     c, _, _, E = _shade(L, n, m)
     G = (c > 0) * L.mu_col
     c *= G
@@ -490,7 +505,10 @@ def grid_start(L, I, w, n0, m_value, count=256, rs=None):
     # the given start competes with the grid
     m = np.full(P, m_value, dtype=np.float32)
     rd, rs0 = init_rho(L, I, w, n0, m, np.full(P, np.inf, dtype=np.float32), rs=rs)
-    own = evaluate(L, I, w, n0, rd, rs0, m) - np.einsum("kp,kp->p", w * I, I).astype(np.float64)
+    own = np.empty(P)
+    for s in _chunks(P, k):
+        own[s] = (evaluate(L, I[:, s], w[:, s], n0[:, s], rd[s], rs0[s], m[s])
+                  - np.einsum("kp,kp->p", w[:, s] * I[:, s], I[:, s]))
     use = best < own
     n = np.where(use, C[arg].T.astype(np.float32), n0)
     return n, np.where(use, best, own)

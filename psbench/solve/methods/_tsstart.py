@@ -57,18 +57,26 @@ def trimmed(I, S, valid, *, dark=TRIM_DARK, bright=TRIM_BRIGHT):
     """
     k, P = I.shape
     mu = np.linalg.norm(S, axis=1).astype(np.float32)[:, None]
-    key = np.where(valid, I / np.where(mu > 0, mu, 1), np.inf)  # unusable sort last
-    order = np.argsort(key, axis=0, kind="stable")
-    rank = np.empty((k, P), dtype=np.int32)
-    np.put_along_axis(rank, order, np.arange(k, dtype=np.int32)[:, None], axis=0)
-    nv = valid.sum(axis=0)
-    lo = np.floor(dark * nv).astype(np.int32)
-    hi = nv - np.floor(bright * nv).astype(np.int32)
-    short = (hi - lo) < 3  # keep at least three: widen towards the bright end first
-    hi = np.where(short, np.minimum(nv, lo + 3), hi)
-    lo = np.where(short, np.maximum(0, hi - 3), lo)
-    kept = valid & (rank >= lo) & (rank < hi)
-    return lsq3(I, S, kept.astype(np.float32)), kept
+    inv_mu = 1.0 / np.where(mu > 0, mu, 1)
+    b = np.empty((3, P), dtype=np.float32)
+    kept = np.empty((k, P), dtype=bool)
+    for lo_ in range(0, P, CHUNK):  # chunks bound the sort's temporaries
+        s = slice(lo_, min(P, lo_ + CHUNK))
+        v = valid[:, s]
+        key = np.where(v, I[:, s] * inv_mu, np.inf)  # unusable sort last
+        srt = np.sort(key.T, axis=1)  # (p, k): contiguous per pixel, fast for small k
+        nv = v.sum(axis=0)
+        lo = np.floor(dark * nv).astype(np.int64)
+        hi = nv - np.floor(bright * nv).astype(np.int64)
+        short = (hi - lo) < 3  # keep at least three: widen towards the bright end first
+        hi = np.where(short, np.minimum(nv, lo + 3), hi)
+        lo = np.where(short, np.maximum(0, hi - 3), lo)
+        rows = np.arange(srt.shape[0])
+        t_lo = srt[rows, np.minimum(lo, k - 1)]
+        t_hi = srt[rows, np.maximum(hi - 1, 0)]
+        kept[:, s] = v & (key >= t_lo) & (key <= t_hi)  # ties at a bound are kept
+        b[:, s] = lsq3(I[:, s], S, kept[:, s].astype(np.float32))
+    return b, kept
 
 
 def lsq3(I, S, w):
@@ -127,6 +135,8 @@ def start_weights(problem, name, idx, I, valid):
     return b, weights
 
 
+#: pixels per chunk of the start's per-pixel work (bounds temporaries)
+CHUNK = 1 << 16
 #: pixels per image used to estimate the noise scale
 SIGMA_PIXELS = 65536
 
@@ -168,14 +178,22 @@ def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
         Observations.
     valid : (k, P) bool
         The mask expression's validity (never overridden).
-    pred : (k, P) float32
-        The model's prediction (clamped at 0).
+    pred : (k, P) float32 or callable
+        The model's prediction (clamped at 0), or ``pred(slice) -> (k, n)`` giving
+        it for a slice of the pixels.
     sigma : (k,) float32
         Per-image noise scale (:func:`noise_sigma`).
     """
     margin = (np.float32(dark_sigmas) * sigma)[:, None]
-    dark = (I < np.float32(dark_ratio) * pred) & (I < pred - margin) & (pred > margin)
-    return (valid & ~dark).astype(np.float32)
+    ratio = np.float32(dark_ratio)
+    w = np.empty(I.shape, dtype=np.float32)
+    for lo in range(0, I.shape[1], CHUNK):
+        s = slice(lo, lo + CHUNK)
+        p, i = pred(s) if callable(pred) else pred[:, s], I[:, s]
+        dark = (i < ratio * p) & (i < p - margin) & (p > margin)
+        np.logical_and(valid[:, s], ~dark, out=dark)
+        w[:, s] = dark
+    return w
 
 
 def lambert_pred(b, S):

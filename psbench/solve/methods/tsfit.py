@@ -16,8 +16,8 @@ from ..._checks import PsbenchError
 from ...registry import Method
 from ..base import Fit, Options, check_choice, check_int, check_number
 from . import _lm, _tsshared
-from ._tsstart import (STARTS, lambert_pred, noise_sigma, put_back, resolve_start,
-                       start_weights, unit)
+from ._tsstart import (SIGMA_PIXELS, STARTS, lambert_pred, noise_sigma, put_back,
+                       resolve_start, start_weights, unit)
 
 __all__ = ["TsfitOptions", "tsfit", "METHOD"]
 
@@ -239,14 +239,21 @@ def tsfit(problem, options=None) -> Fit:
     n0, rd0 = unit(b0)
     sigma = None
     if opt.weights == "start":
-        pred = lambert_pred(b0, S)
-        sigma = noise_sigma(I, pred, w_start)
-        w = put_back(I, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
+        step = max(1, idx.size // SIGMA_PIXELS)
+        sub = slice(0, None, step)
+        sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub])
+        w = put_back(I, valid, lambda s: lambert_pred(b0[:, s], S), sigma, opt.dark_ratio,
+                     opt.dark_sigmas)
+        del w_start
     else:
         w = valid.astype(np.float32)
     timings["start"] = time.perf_counter() - t0
 
-    top = np.max(np.where(w > 0, I / np.where(L.mu > 0, L.mu, 1)[:, None], 0), axis=0)
+    inv_mu = (1.0 / np.where(L.mu > 0, L.mu, 1))[:, None]
+    top = np.empty(idx.size, dtype=np.float32)
+    for lo in range(0, idx.size, 1 << 16):
+        s = slice(lo, lo + (1 << 16))
+        top[s] = (I[:, s] * inv_mu * (w[:, s] > 0)).max(axis=0)
     rs_max = (opt.rho_s_max * top).astype(np.float32)
     fitted = ((w > 0).sum(axis=0) >= MIN_OBS) & (rd0 > 0)
     f = np.flatnonzero(fitted)
@@ -276,9 +283,11 @@ def tsfit(problem, options=None) -> Fit:
         _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
                 rs_shared)
     for _ in range(opt.refine if opt.weights == "start" else 0):
-        pred = _lm.predict(L, n, rd, rs, m)
-        sigma = noise_sigma(I, pred, w)
-        w_new = put_back(I, valid, pred, sigma, opt.dark_ratio, opt.dark_sigmas)
+        sub = slice(0, None, max(1, P // SIGMA_PIXELS))
+        sigma = noise_sigma(I[:, sub], _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub]),
+                            w[:, sub])
+        w_new = put_back(I, valid, lambda s: _lm.predict(L, n[:, s], rd[s], rs[s], m[s]),
+                         sigma, opt.dark_ratio, opt.dark_sigmas)
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
         ok = changed & ((w > 0).sum(axis=0) >= MIN_OBS)

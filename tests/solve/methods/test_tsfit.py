@@ -85,6 +85,7 @@ def test_light_power_is_modelled():
     assert fit.info["rho_s"] == pytest.approx(0.5, rel=0.02)
 
 
+@pytest.mark.filterwarnings("ignore:tsfit.*did not converge:RuntimeWarning")
 @pytest.mark.parametrize("name, lights, factor", [
     ("sombrero2", "45x16", 2.0), ("sombrero2", "30x8+60x8", 2.0),
     # the semisphere's rim (zenith > 60 deg, a quarter of its pixels) is ill-posed
