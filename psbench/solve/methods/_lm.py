@@ -212,11 +212,12 @@ def _solve_spd(A, g):
     return x, ok
 
 
-def _step(L, I, w, n, rd, rs, m, rs_max, A, g, t1, t2, lam, cols, m_lo, m_hi, tol):
+def _step(L, I, w, n, rd, rs, m, rs_max, A, g, t1, t2, lam, active, cols, m_lo, m_hi, tol):
     """One damped Gauss–Newton step for a chunk of pixels.
 
-    Returns the candidate (n, rd, rs, m), its (cost, A, g, t1, t2), ``ok`` (a finite
-    step was taken) and ``small`` (the step is below ``tol`` in every unknown).
+    Returns the candidate (n, rd, rs, m), its (cost, A, g, t1, t2) (None if no pixel
+    needed it; cost inf where not evaluated), ``ok`` (a finite step was taken) and
+    ``small`` (the step is below ``tol`` in every unknown).
     """
     q = 3 + len(cols)
     Ad, ga = A.astype(np.float64), g.astype(np.float64)
@@ -250,14 +251,32 @@ def _step(L, I, w, n, rd, rs, m, rs_max, A, g, t1, t2, lam, cols, m_lo, m_hi, to
             rs2 = np.clip(rs + xf[j], 0.0, rs_max)
         else:
             m2 = np.clip(m + xf[j], m_lo, m_hi)
-    new = evaluate(L, I, w, n2, rd2, rs2, m2, jac=True, cols=cols)
     # converged: the step is below tol in every unknown (radians for n, relative to
-    # the pixel's albedo for rho_d and rho_s, relative to m for m)
+    # the pixel's albedo for rho_d and rho_s, relative to m for m); such a pixel is
+    # at its optimum within tol and its candidate is not evaluated
     scale = np.maximum(np.maximum(rd, rs), 1e-12)
     small = ((np.hypot(x[0], x[1]) <= tol) & (np.abs(rd2 - rd) <= tol * scale)
              & (np.abs(rs2 - rs) <= tol * scale) & (np.abs(m2 - m) <= tol * m))
     small |= lam > 1e12  # no descent direction left at float precision
-    return (n2, rd2, rs2, m2), new, ok, small
+    need = active & ~small
+    cand = (n2, rd2, rs2, m2)
+    if not need.any():
+        return cand, None, ok, small
+    if need.mean() > 0.85:
+        return cand, evaluate(L, I, w, n2, rd2, rs2, m2, jac=True, cols=cols), ok, small
+    sel = np.flatnonzero(need)
+    c2, A2, g2, u1, u2 = evaluate(L, I[:, sel], w[:, sel], n2[:, sel], rd2[sel], rs2[sel],
+                                  m2[sel], jac=True, cols=cols)
+    p = n.shape[1]
+    cost = np.full(p, np.inf)
+    cost[sel] = c2
+    A = np.zeros((q, q, p), dtype=A2.dtype)
+    A[..., sel] = A2
+    g = np.zeros((q, p), dtype=g2.dtype)
+    g[:, sel] = g2
+    t1n, t2n = np.zeros_like(n), np.zeros_like(n)
+    t1n[:, sel], t2n[:, sel] = u1, u2
+    return cand, (cost, A, g, t1n, t2n), ok, small
 
 
 def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter=100,
@@ -320,14 +339,17 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
                 continue
             cand, new, ok, small = _step(
                 L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], rsmw[s], A[..., s],
-                g[:, s], t1[:, s], t2[:, s], lam[s], cols, m_lo, m_hi, tol)
-            c2, A2, g2, u1, u2 = new
-            better = a & ok & (c2 < cw[s]) & np.isfinite(c2)
-            for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
-                             (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
-                             (t1[:, s], u1), (t2[:, s], u2)):
-                if src is not dst:
-                    np.copyto(dst, src, where=better)
+                g[:, s], t1[:, s], t2[:, s], lam[s], a, cols, m_lo, m_hi, tol)
+            if new is None:
+                better = np.zeros_like(a)
+            else:
+                c2, A2, g2, u1, u2 = new
+                better = a & ~small & ok & (c2 < cw[s]) & np.isfinite(c2)
+                for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                                 (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
+                                 (t1[:, s], u1), (t2[:, s], u2)):
+                    if src is not dst:
+                        np.copyto(dst, src, where=better)
             ls = lam[s]
             ls *= np.where(better, 0.2, np.where(a, 8.0, 1.0))
             np.maximum(ls, 1e-9, out=ls)
