@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _lm
+from . import _lm, _tsgrid
 
 __all__ = ["estimate"]
 
@@ -27,7 +27,7 @@ def _fit(L, I, w, n, rs_max, m_val, rs_val, cols, opt, *, grid=True):
     m = np.full(P, m_val, dtype=np.float32)
     rs_fixed = None if rs_val is None else np.full(P, rs_val, dtype=np.float32)
     if grid and opt.start_grid:
-        n = _lm.grid_start(L, I, w, n, m_val, opt.start_grid, rs=rs_fixed)[0]
+        n = _tsgrid.grid_start(L, I, w, n, m_val, opt.start_grid, rs=rs_fixed)[0]
     else:
         n = n.copy()
     rd, rs = _lm.init_rho(L, I, w, n, m, rs_max, rs=rs_fixed)
@@ -40,7 +40,7 @@ def _coarse_m(L, I, w, n0, rs_max, opt):
     """The m of a log grid that explains the sample best (per-pixel rho_s)."""
     grid = np.geomspace(opt.m_min, opt.m_max, M_GRID)
     if opt.start_grid:
-        costs = [_lm.grid_start(L, I, w, n0, g, opt.start_grid)[1].sum() for g in grid]
+        costs = [_tsgrid.grid_start(L, I, w, n0, g, opt.start_grid)[1].sum() for g in grid]
     else:
         costs = [_fit(L, I, w, n0, rs_max, g, None, ("rs",), opt, grid=False)[1].sum()
                  for g in grid]

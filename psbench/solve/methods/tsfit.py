@@ -15,7 +15,7 @@ import numpy as np
 from ..._checks import PsbenchError
 from ...registry import Method
 from ..base import Fit, Options, check_choice, check_int, check_number
-from . import _lm, _tsshared
+from . import _lm, _tsgrid, _tsshared
 from ._tsstart import (SIGMA_PIXELS, STARTS, lambert_pred, noise_sigma, put_back,
                        resolve_start, start_weights, unit)
 
@@ -275,7 +275,7 @@ def tsfit(problem, options=None) -> Fit:
     If, wf = (I, w) if f.size == P else (I[:, f], w[:, f])
     nf = n[:, f]
     if opt.start_grid:
-        nf = _lm.grid_start(L, If, wf, nf, m_shared, opt.start_grid, rs=rs_fixed)[0]
+        nf = _tsgrid.grid_start(L, If, wf, nf, m_shared, opt.start_grid, rs=rs_fixed)[0]
     rd[f], rs[f] = _lm.init_rho(L, If, wf, nf, m[f], rs_max[f], rs=rs_fixed)
     n[:, f] = nf
     _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost)
@@ -347,7 +347,7 @@ def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_sh
     Is, ws = I[:, sel], w[:, sel]
     rs_fixed = None if rs_shared is None else rs[sel]
     ms = np.full(sel.size, m_shared, dtype=np.float32)
-    ns = _lm.grid_start(L, Is, ws, n[:, sel], m_shared, 4 * opt.start_grid, rs=rs_fixed)[0]
+    ns = _tsgrid.grid_start(L, Is, ws, n[:, sel], m_shared, 4 * opt.start_grid, rs=rs_fixed)[0]
     rds, rss = _lm.init_rho(L, Is, ws, ns, ms, rs_max[sel], rs=rs_fixed)
     it, cv, c = _lm.fit(L, Is, ws, ns, rds, rss, ms, rs_max[sel], cols=cols, m_lo=opt.m_min,
                         m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
