@@ -6,7 +6,6 @@ Problems are built directly (the mask expression's validity taken from
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
