@@ -14,13 +14,16 @@ from . import _lm, _tsgrid
 
 __all__ = ["estimate"]
 
-#: pixels of the sub-sample that picks the coarse m
-COARSE = 2000
+#: pixels of the sub-sample that picks the coarse m, and LM iterations there
+COARSE, COARSE_ITER = 1000, 20
 #: coarse m values, log-spaced over [m_min, m_max]
 M_GRID = 8
+#: Gauss–Newton steps on the shared unknowns: at most this many, until a step moves
+#: them by less than TOL (relative)
+MAX_STEPS, TOL = 20, 1e-3
 
 
-def _fit(L, I, w, n, rs_max, m_val, rs_val, cols, opt, *, grid=True):
+def _fit(L, I, w, n, rs_max, m_val, rs_val, cols, opt, *, grid=True, max_iter=None):
     """Fit the sample at the given lobe (rs_val None: per pixel); returns the state
     (n, rd, rs, m) and the per-pixel cost."""
     P = n.shape[1]
@@ -32,18 +35,16 @@ def _fit(L, I, w, n, rs_max, m_val, rs_val, cols, opt, *, grid=True):
         n = n.copy()
     rd, rs = _lm.init_rho(L, I, w, n, m, rs_max, rs=rs_fixed)
     _, _, c = _lm.fit(L, I, w, n, rd, rs, m, rs_max, cols=cols, m_lo=opt.m_min,
-                      m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
+                      m_hi=opt.m_max, max_iter=max_iter or opt.lm_max_iter, tol=opt.lm_tol)
     return (n, rd, rs, m), c
 
 
 def _coarse_m(L, I, w, n0, rs_max, opt):
-    """The m of a log grid that explains the sample best (per-pixel rho_s)."""
+    """The m of a log grid that explains the sample best: per-pixel fits (rho_s per
+    pixel, from the grid start) at each m, compared by their total cost."""
     grid = np.geomspace(opt.m_min, opt.m_max, M_GRID)
-    if opt.start_grid:
-        costs = [_tsgrid.grid_start(L, I, w, n0, g, opt.start_grid)[1].sum() for g in grid]
-    else:
-        costs = [_fit(L, I, w, n0, rs_max, g, None, ("rs",), opt, grid=False)[1].sum()
-                 for g in grid]
+    costs = [_fit(L, I, w, n0, rs_max, g, None, ("rs",), opt, max_iter=COARSE_ITER)[1].sum()
+             for g in grid]
     return float(grid[int(np.argmin(costs))])
 
 
@@ -83,7 +84,7 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
     total = float(c.sum())
     vals = {"rs": rs0, "m": m0}
     rs_cap = float(np.median(rsm))
-    for _ in range(30):
+    for _ in range(MAX_STEPS):
         step = _lm.reduced(L, Is, ws, *state, cols, glob)
         accepted = False
         for _ in range(6):
@@ -96,7 +97,7 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
                     new["rs"] = float(np.clip(v + np.clip(s, -0.5 * max(v, 1e-12), max(v, rs_cap)),
                                               0.0, rs_cap))
             moved = max(abs(new[nm] - vals[nm]) / max(abs(vals[nm]), 1e-12) for nm in glob)
-            if moved <= 1e-5:
+            if moved <= TOL / 10:
                 break
             n, rd, rs, m = (a.copy() for a in state)
             m[:] = new["m"]
@@ -108,6 +109,6 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
                 state, total, vals, accepted = (n, rd, rs, m), float(c.sum()), new, True
                 break
             step = step * 0.25
-        if not accepted or moved <= 1e-4:
+        if not accepted or moved <= TOL:
             break
     return vals["rs"], vals["m"]
