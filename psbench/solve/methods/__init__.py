@@ -14,6 +14,7 @@ rpca        low-rank + sparse decomposition (Wu et al., ACCV 2010)
 huber       M-estimator (IRLS, MAD scale)
 cauchy      M-estimator (IRLS, MAD scale)
 tukey       M-estimator (IRLS, MAD scale)
+tsfit       per-pixel Lambert + Torrance-Sparrow fit (normal, rho_d, rho_s, lobe width m)
 ==========  ==============================================================================
 
 Each module exposes ``METHOD`` (a :class:`psbench.registry.Method`) with its options

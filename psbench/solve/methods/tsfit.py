@@ -1,0 +1,379 @@
+"""``tsfit``: per-pixel fit of Lambert + Torrance–Sparrow that models the highlight.
+
+Masks and robust solvers discard the highlight as an outlier. The thesis's own
+reflectance model (Eq. 2.14) says how a highlight depends on the normal, so tsfit
+keeps those observations and fits the model to them; see :func:`tsfit`.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._checks import PsbenchError
+from ...registry import Method
+from ..base import Fit, Options, check_choice, check_int, check_number
+from . import _lm, _tsgrid, _tsshared
+from ._tsstart import (SIGMA_PIXELS, STARTS, lambert_pred, noise_sigma, put_back,
+                       resolve_start, start_weights, unit)
+
+__all__ = ["TsfitOptions", "tsfit", "METHOD"]
+
+#: fewest weighted observations for a pixel to be fitted (4 unknowns + 1)
+MIN_OBS = 5
+
+
+@dataclass
+class TsfitOptions(Options):
+    """Options of :func:`tsfit` (besides the mask engine's, see :class:`Options`).
+
+    Parameters
+    ----------
+    rho_s_mode : {"shared", "pixel"}
+        The specular albedo: one value for the whole object, estimated from the data
+        ("shared", default: the specular reflectance of one dielectric material
+        hardly varies, and a per-pixel rho_s is nearly collinear with rho_d where the
+        lobe is wide), or one per pixel ("pixel", for objects of several materials).
+    m_mode : {"shared", "pixel", "fixed"}
+        The lobe width m: one value for the whole object ("shared", default); one
+        per pixel, started from the coarse estimate ("pixel"); or ``m_init`` held
+        fixed ("fixed").
+    m_init : float or None
+        Start value of m (required for ``m_mode="fixed"``). None: the best of 8
+        values log-spaced over [m_min, m_max] on a pixel sample.
+    m_min, m_max : float
+        Bounds on m, 0 < m_min < m_max (default 1 and 50: lobes between ~57 and ~1
+        degrees wide).
+    rho_s_max : float
+        Upper bound on rho_s as a multiple of the pixel's brightest used observation
+        (divided by the light power; the median of those bounds for a shared rho_s);
+        > 0. Keeps rho_s finite where the lobe's peak is not sampled.
+    lm_max_iter : int
+        Maximum Levenberg–Marquardt iterations per pixel and round; >= 1.
+    lm_tol : float
+        A pixel has converged when a step moves its normal by at most ``lm_tol``
+        radians, rho_d and rho_s by at most ``lm_tol`` times its albedo and m by
+        ``lm_tol`` times m; in (0, 0.1).
+    start : str
+        The robust step giving the start and the weights: ``"auto"`` (the registered
+        ``robust`` method when there is one, else ``"trimmed"``), ``"trimmed"``
+        (per-pixel least squares without the darkest and brightest quarter of the
+        usable observations), ``"ls"`` (the masked least-squares solution), or the
+        name of any registered method.
+    weights : {"start", "mask"}
+        "start": the start step's inliers with the highlights put back: every usable
+        observation gets weight 1 unless it is dark, i.e. the model predicts more
+        than ``dark_sigmas`` noise scales of light and the observation is below
+        ``dark_ratio`` times the prediction *and* more than ``dark_sigmas`` noise
+        scales below it (the noise scale is estimated per image from the start's
+        inliers, MAD); dark ones get weight 0. Decided first with the start's
+        Lambert prediction, then (``refine``) with the fitted model. "mask":
+        exactly the mask expression's validity (e.g. ``mask="Sh"``), nothing else.
+    dark_ratio : float
+        See ``weights``; in [0, 1]. 0 puts every observation back.
+    dark_sigmas : float
+        See ``weights``; >= 0.
+    refine : int
+        Rounds of re-deciding the dark observations with the fitted model instead
+        of the Lambert start, refitting the pixels whose weights changed; >= 0.
+    m_sample : int
+        Object pixels (drawn with ``seed``) on which the shared lobe is estimated;
+        >= 100.
+    start_grid : int
+        Candidate normals (a uniform hemisphere lattice) of the global start
+        search; each pixel starts from the best of them and the robust start. 0:
+        start from the robust solution alone.
+    """
+
+    rho_s_mode: str = "shared"
+    m_mode: str = "shared"
+    m_init: float | None = None
+    m_min: float = 1.0
+    m_max: float = 50.0
+    rho_s_max: float = 10.0
+    lm_max_iter: int = 100
+    lm_tol: float = 1e-4
+    start: str = "auto"
+    weights: str = "start"
+    dark_ratio: float = 0.5
+    dark_sigmas: float = 3.0
+    refine: int = 1
+    m_sample: int = 2000
+    start_grid: int = 64
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_choice(self.rho_s_mode, ("shared", "pixel"), "rho_s_mode")
+        check_choice(self.m_mode, ("shared", "pixel", "fixed"), "m_mode")
+        check_number(self.m_min, "m_min", lo=0, lo_open=True)
+        check_number(self.m_max, "m_max", lo=0, lo_open=True)
+        if not self.m_min < self.m_max:
+            raise PsbenchError(f"m_min must be < m_max, got m_min={self.m_min!r}, "
+                               f"m_max={self.m_max!r}")
+        check_number(self.m_init, "m_init", lo=self.m_min, hi=self.m_max, allow_none=True)
+        if self.m_mode == "fixed" and self.m_init is None:
+            raise PsbenchError("m_mode='fixed' needs m_init, a number in [m_min, m_max]")
+        check_number(self.rho_s_max, "rho_s_max", lo=0, lo_open=True)
+        check_int(self.lm_max_iter, "lm_max_iter", lo=1)
+        check_number(self.lm_tol, "lm_tol", lo=0, hi=0.1, lo_open=True, hi_open=True)
+        if not isinstance(self.start, str) or not self.start:
+            raise PsbenchError(f"start must be a method name, got {self.start!r}")
+        if self.start not in STARTS:
+            from ... import registry
+            if self.start.lower() == "tsfit":
+                raise PsbenchError("start='tsfit' is not allowed (tsfit cannot start from itself)")
+            valid = [n for n in registry.names("methods") if n != "tsfit"]
+            if self.start not in valid:
+                raise PsbenchError(f"start={self.start!r} is not known; valid choices: "
+                                   f"{', '.join(list(STARTS) + valid)}")
+        check_choice(self.weights, ("start", "mask"), "weights")
+        check_number(self.dark_ratio, "dark_ratio", lo=0, hi=1)
+        check_number(self.dark_sigmas, "dark_sigmas", lo=0)
+        check_int(self.refine, "refine", lo=0)
+        check_int(self.m_sample, "m_sample", lo=100)
+        check_int(self.start_grid, "start_grid", lo=0)
+
+
+def tsfit(problem, options=None) -> Fit:
+    r"""Fit Lambert + Torrance–Sparrow per pixel, the highlight included.
+
+    Model (thesis Eq. 2.14–2.15, in the form :func:`psbench.render` renders with
+    ``model="ts"``): for light i with unit direction d_i and power mu_i (s_i = mu_i
+    d_i), orthographic view v = (0, 0, 1) and bisector h_i = (d_i + v) / |d_i + v|,
+
+    .. math::
+
+        I_i = \mu_i \left[\rho_d\, (d_i \cdot n) + \rho_s\, e^{-m^2 \theta_i^2}\right]
+        \ \text{if}\ d_i \cdot n > 0,\ \text{else}\ 0, \qquad
+        \theta_i = \arccos(h_i \cdot n).
+
+    tsfit minimises, per pixel, :math:`\sum_i w_i (I_i - f_i)^2` over the unit normal
+    n (two angles), :math:`\rho_d \ge 0`, and, per pixel or shared by the whole
+    object (``rho_s_mode``, ``m_mode``; both shared by default),
+    :math:`0 \le \rho_s \le` ``rho_s_max`` times the pixel's brightest used
+    observation and m in [``m_min``, ``m_max``]. Self shadows are part of the model
+    (f = 0 where d_i . n <= 0); cast shadows are not, and are left out by the weights.
+
+    Assumptions: distant lights (a layout's positions, if any, are ignored; the
+    direction is the same at every pixel), orthographic view along +z, linear
+    images, the Torrance–Sparrow form of Eq. 2.14 with a Gaussian lobe in the angle
+    between n and h_i (no Fresnel, geometric attenuation or 1 / (n . v) factor), the
+    highlight switched off in self shadow and both terms scaled by the light power,
+    exactly as :func:`psbench.render` renders it; so noiseless scenes rendered that
+    way are fitted exactly. Real materials follow it only approximately.
+
+    Algorithm:
+
+    1. **Start and weights.** A robust step (option ``start``; default the
+       registered ``robust`` method, else a private rank-trimmed least squares)
+       gives rho * n and per-observation weights; the highlights it dropped are put
+       back (``weights``): every observation gets weight 1 unless it is clearly
+       darker than the model predicts (a cast shadow), by a noise scale estimated
+       per image (MAD of the residuals). The mask expression's validity
+       (``problem.valid``, e.g. ``mask="Sh"``) always applies.
+    2. **Shared lobe** (rho_s and/or m). On ``m_sample`` random object pixels: the
+       m of a log grid that explains the sample best, per-pixel fits, then
+       Gauss–Newton steps on the shared unknowns with every pixel's own unknowns
+       projected out (Schur complement of the per-pixel normal equations), each
+       followed by a warm-started refit and accepted only if the total cost drops.
+    3. **Global start.** Each pixel starts from the best of ``start_grid``
+       candidate normals (a hemisphere lattice; costs for all pixels at once by
+       matrix products, rho_d in closed form) and the robust start.
+    4. **Per-pixel fit.** Levenberg–Marquardt on all object pixels at once: 3 to 5
+       unknowns per pixel, batched normal equations solved by Cholesky, Marquardt
+       damping, an active set for unknowns at their bounds. The normal moves on the
+       sphere, n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent basis at the
+       current n, so it stays unit and has no pole singularity. Each iteration
+       visits only the pixels not yet converged (``lm_tol``), in cache-sized chunks,
+       up to ``lm_max_iter``. Pixels whose residual ends above twice the median
+       restart from a 4x finer grid and keep the better fit.
+    5. **Refine** (``refine`` rounds): the dark observations are re-decided with
+       the fitted model instead of the Lambert start, and the pixels whose weights
+       changed are refitted from their solution.
+
+    Pixels with fewer than 5 observations of positive weight, or a zero start
+    albedo, keep the start (rho_s = 0, flagged in ``info["kept_start"]``).
+
+    Parameters
+    ----------
+    problem : psbench.solve.base.Problem
+    options : TsfitOptions, optional
+
+    Returns
+    -------
+    Fit
+        ``b = rho_d * n`` (H, W, 3) float32 (0 outside the object); ``weights``
+        (k, H, W) float32 the weights of the final fit (``valid`` = weights > 0);
+        ``iterations`` (H, W) int32 LM iterations per pixel (all rounds);
+        ``converged`` (H, W) bool; ``info``: ``rho_s`` and ``m`` (a float when shared
+        or fixed, else (H, W) float32), ``rms`` (H, W) weighted RMS residual of the
+        fit, ``kept_start`` (H, W) bool, ``start`` (the start step used), ``sigma``
+        (k,) the noise scales of the final weights (None with ``weights="mask"``),
+        ``timings`` (seconds per stage). Non-converged pixels keep their best
+        estimate (LM only accepts steps that lower the cost) and raise a
+        RuntimeWarning; no NaN is ever returned.
+    """
+    opt = options if options is not None else TsfitOptions()
+    if not isinstance(opt, TsfitOptions):
+        raise PsbenchError(f"options must be TsfitOptions, got {type(opt).__name__}")
+    images = problem.images
+    k, H, W = images.shape
+    if k < MIN_OBS:
+        raise PsbenchError(f"images: tsfit needs at least {MIN_OBS} images (4 unknowns per "
+                           f"pixel), got {k}")
+    start_name = resolve_start(opt.start)
+    t0 = time.perf_counter()
+    timings = {}
+
+    obj = np.asarray(problem.object_mask, dtype=bool).reshape(-1)
+    idx = np.flatnonzero(obj)
+    I = np.ascontiguousarray(images.reshape(k, -1)[:, idx], dtype=np.float32)  # (k, P)
+    valid = np.asarray(problem.valid, dtype=bool).reshape(k, -1)[:, idx]
+    lay = problem.lights
+    L = _lm.Lights(lay.directions, lay.power)
+    S = L.d.astype(np.float64) * L.mu[:, None]
+
+    b0, w_start = start_weights(problem, start_name, idx, I, valid)
+    n0, rd0 = unit(b0)
+    sigma = None
+    if opt.weights == "start":
+        step = max(1, idx.size // SIGMA_PIXELS)
+        sub = slice(0, None, step)
+        sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub])
+        w = put_back(I, valid, lambda s: lambert_pred(b0[:, s], S), sigma, opt.dark_ratio,
+                     opt.dark_sigmas)
+        del w_start
+    else:
+        w = valid.astype(np.float32)
+    timings["start"] = time.perf_counter() - t0
+
+    inv_mu = (1.0 / np.where(L.mu > 0, L.mu, 1))[:, None]
+    top = np.empty(idx.size, dtype=np.float32)
+    for lo in range(0, idx.size, 1 << 16):
+        s = slice(lo, lo + (1 << 16))
+        top[s] = (I[:, s] * inv_mu * (w[:, s] > 0)).max(axis=0)
+    rs_max = (opt.rho_s_max * top).astype(np.float32)
+    fitted = ((w > 0).sum(axis=0) >= MIN_OBS) & (rd0 > 0)
+    f = np.flatnonzero(fitted)
+
+    t1 = time.perf_counter()
+    rs_shared, m_shared = _tsshared.estimate(L, I, w, n0, rs_max, opt, problem.seed, f)
+    timings["lobe"] = time.perf_counter() - t1
+
+    t1 = time.perf_counter()
+    P = idx.size
+    n, rd = n0.copy(), rd0.copy()
+    rs = np.full(P, rs_shared or 0.0, dtype=np.float32)
+    m = np.full(P, m_shared, dtype=np.float32)
+    cols = (() if rs_shared is not None else ("rs",)) + (("m",) if opt.m_mode == "pixel" else ())
+    iters = np.zeros(P, dtype=np.int32)
+    conv = np.ones(P, dtype=bool)
+    cost = np.zeros(P)
+    rs_fixed = None if rs_shared is None else rs[f]
+    If, wf = (I, w) if f.size == P else (I[:, f], w[:, f])
+    nf = n[:, f]
+    if opt.start_grid:
+        nf = _tsgrid.grid_start(L, If, wf, nf, m_shared, opt.start_grid, rs=rs_fixed)[0]
+    rd[f], rs[f] = _lm.init_rho(L, If, wf, nf, m[f], rs_max[f], rs=rs_fixed)
+    n[:, f] = nf
+    _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost)
+    if opt.start_grid:
+        _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
+                rs_shared)
+    for _ in range(opt.refine if opt.weights == "start" else 0):
+        sub = slice(0, None, max(1, P // SIGMA_PIXELS))
+        sigma = noise_sigma(I[:, sub], _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub]),
+                            w[:, sub])
+        w_new = put_back(I, valid, lambda s: _lm.predict(L, n[:, s], rd[s], rs[s], m[s]),
+                         sigma, opt.dark_ratio, opt.dark_sigmas)
+        changed = fitted & (w_new != w).any(axis=0)
+        w = w_new
+        ok = changed & ((w > 0).sum(axis=0) >= MIN_OBS)
+        if not ok.any():
+            break
+        _fit_subset(L, I, w, n, rd, rs, m, rs_max, np.flatnonzero(ok), cols, opt, iters,
+                    conv, cost)
+    timings["fit"] = time.perf_counter() - t1
+
+    # never return NaN: a pixel that went non-finite keeps its start
+    bad = ~(np.isfinite(n).all(0) & np.isfinite(rd) & np.isfinite(rs) & np.isfinite(m))
+    keep = ~fitted | bad
+    if keep.any():
+        n[:, keep], rd[keep], rs[keep] = n0[:, keep], rd0[keep], 0.0
+        m[keep] = m_shared
+        conv[bad] = False
+    nconv = int((~conv).sum())
+    if nconv:
+        warnings.warn(f"tsfit: {nconv} of {P} object pixels did not converge within "
+                      f"lm_max_iter={opt.lm_max_iter}; they keep their best estimate",
+                      RuntimeWarning, stacklevel=2)
+
+    def plane(v, fill=0, dtype=np.float32):
+        out = np.full(H * W, fill, dtype=dtype)
+        out[idx] = v
+        return out.reshape(H, W)
+
+    b = np.zeros((H * W, 3), dtype=np.float32)
+    b[idx] = (n * rd).T
+    wfull = np.asarray(problem.valid, dtype=np.float32).reshape(k, -1).copy()
+    wfull[:, idx] = w
+    wsum = np.maximum(w.sum(axis=0), 1e-30)
+    info = dict(rho_s=rs_shared if rs_shared is not None else plane(rs),
+                m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
+                rms=plane(np.sqrt(cost / wsum)), start=start_name,
+                kept_start=plane(keep, False, bool), sigma=sigma,
+                timings=dict(timings, total=time.perf_counter() - t0))
+    return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
+               weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
+               converged=plane(conv, True, bool), info=info)
+
+
+#: pixels whose RMS residual exceeds this multiple of the median are searched again
+REPAIR = 2.0
+
+
+def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
+            rs_shared):
+    """Restart the worst-fitting pixels from the best normal of a hemisphere grid and
+    keep the lower cost (a start in the wrong basin ends with a high residual)."""
+    if f.size == 0:
+        return
+    rms = np.sqrt(cost[f] / np.maximum(w[:, f].sum(0), 1e-30))
+    sel = f[rms > REPAIR * np.median(rms)]
+    if sel.size == 0:
+        return
+    Is, ws = I[:, sel], w[:, sel]
+    rs_fixed = None if rs_shared is None else rs[sel]
+    ms = np.full(sel.size, m_shared, dtype=np.float32)
+    ns = _tsgrid.grid_start(L, Is, ws, n[:, sel], m_shared, 4 * opt.start_grid, rs=rs_fixed)[0]
+    rds, rss = _lm.init_rho(L, Is, ws, ns, ms, rs_max[sel], rs=rs_fixed)
+    it, cv, c = _lm.fit(L, Is, ws, ns, rds, rss, ms, rs_max[sel], cols=cols, m_lo=opt.m_min,
+                        m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
+    iters[sel] += it
+    b = c < cost[sel]
+    pick = sel[b]
+    n[:, pick], rd[pick], rs[pick], m[pick] = ns[:, b], rds[b], rss[b], ms[b]
+    conv[pick], cost[pick] = cv[b], c[b]
+
+
+def _fit_subset(L, I, w, n, rd, rs, m, rs_max, sel, cols, opt, iters, conv, cost):
+    """LM on the pixels ``sel`` (in place on the per-pixel arrays)."""
+    if sel.size == 0:
+        return
+    whole = sel.size == rd.size
+    pick = (lambda a: a) if whole else (lambda a: a[..., sel])
+    ns, rds, rss, ms = (pick(a).copy() for a in (n, rd, rs, m))
+    it, cv, c = _lm.fit(L, pick(I), pick(w), ns, rds, rss, ms, pick(rs_max), cols=cols,
+                        m_lo=opt.m_min, m_hi=opt.m_max, max_iter=opt.lm_max_iter,
+                        tol=opt.lm_tol)
+    n[:, sel], rd[sel], rs[sel], m[sel] = ns, rds, rss, ms
+    iters[sel] += it
+    conv[sel] = cv
+    cost[sel] = c
+
+
+METHOD = Method(name="tsfit", func=tsfit, options=TsfitOptions,
+                help="per-pixel Lambert + Torrance-Sparrow fit that models the highlight "
+                     "(starts from a robust solution)")
