@@ -318,29 +318,34 @@ class _Geometry:
                 jb = min(nq, ja + per + 1)  # one column of overlap for the back-mapping
                 nc = jb - ja
                 f0, f1, t, across = self._lerp_index(sh, ja, jb)
-                rec = (self.mp[f0] * (1 - t) + self.mp[f1] * t) > 0
+                m0, m1 = self.mp[f0] > 0, self.mp[f1] > 0
+                rec = (m0 & (t < 1)) | (m1 & (t > 0))
                 if not rec.any():
                     continue
-                t1 = t[:, None]
-                org = hp[f0] * (1 - t) + hp[f1] * t
                 ok = ((across >= -0.5) & (across <= sh.La - 0.5)).ravel()
-                occ = np.where(ok, org, _NOTHING).astype(np.float32)
-                nrm = npd[f0] * (1 - t1) + npd[f1] * t1
+                occ = np.where(ok, hp[f0] * (1 - t) + hp[f1] * t, _NOTHING).astype(np.float32)
+                # receivers and normals take their values from the object alone: an origin
+                # between an object pixel and a background pixel is the object's
+                to = np.where(m0 == m1, t, m1.astype(np.float32))
+                org = hp[f0] * (1 - to) + hp[f1] * to
+                t1 = to[:, None]
+                nrm = npd[f0] * (1 - t1) + npd[f1] * t1  # emission, too, is the object's
                 Ac = np.zeros((L, nc, k), np.float32)
                 As = np.zeros((L, nc, k), np.float32) if specular is not None else None
                 geo = (occ.reshape(L, nc), org.reshape(L, nc), nrm.reshape(L, nc, 3),
                        rec.reshape(L, nc))
                 if kern is not None:
                     self._numba(kern, specular, spec_e, *geo, f0.reshape(L, nc),
-                                f1.reshape(L, nc), t.reshape(L, nc), Ep, Lp, wd, T, Ac, As)
+                                f1.reshape(L, nc), to.reshape(L, nc), Ep, Lp, wd, T, Ac, As)
                     kern.backmap(Ac, brho, bjf, bt, ja, jb, acc_cos)
                     if As is not None:
                         kern.backmap(As, brho, bjf, bt, ja, jb, acc_spec)
                     continue
                 Ec = Ep[f0] * (1 - t1) + Ep[f1] * t1
                 Lc = None if Lp is None else Lp[f0] * (1 - t1) + Lp[f1] * t1
-                self._numpy(specular, spec_e, *geo, Ec.reshape(L, nc, k), Lc, wd, T,
-                            Ac.reshape(-1, k), None if As is None else As.reshape(-1, k))
+                from ._interreflect_numpy import run
+                run(self, specular, spec_e, *geo, Ec.reshape(L, nc, k), Lc, wd, T,
+                    Ac.reshape(-1, k), None if As is None else As.reshape(-1, k))
                 # back to the pixels whose left working neighbour lies in [ja, jb - 1)
                 sel = np.flatnonzero((bjf >= ja) & (bjf < jb - 1))
                 i0 = brho[sel] * nc + (bjf[sel] - ja)
@@ -375,78 +380,6 @@ class _Geometry:
                    np.float32(self.w), self.bias, Ac,
                    As if As is not None else np.zeros((1, 1, 1), np.float32))
 
-    def _numpy(self, specular, spec_e, occ, org, nrm, rec, Ec, Lc, wd, T, Ac, As):
-        L, nc, k = Ec.shape
-        occ, org = occ.ravel(), org.ravel()
-        nrm = nrm.reshape(-1, 3)
-        Ec = Ec.reshape(-1, k)
-        recv = np.flatnonzero(rec.ravel())
-        nr = nrm[recv]
-        rho = np.arange(L, dtype=np.float32)[:, None]
-        levels = None
-        for e in range(len(T)):
-            w = wd[e]
-            cos_r = nr @ w
-            pos_r = cos_r > 0
-            o = recv[pos_r]
-            if o.size == 0:
-                continue
-            cos_o = cos_r[pos_r]
-            g = occ.reshape(L, nc) - T[e] * rho
-            g -= self.bias
-            levels = _levels(g, levels)
-            ro, co = np.divmod(o, nc)
-            thr = org[o] - T[e] * ro.astype(np.float32)
-            pos = _first_above(levels, ro, co, thr, L, nc)
-            hit = pos < L - 1
-            if not hit.any():
-                continue
-            o, cos_o, thr = o[hit], cos_o[hit], thr[hit]
-            q1 = (pos[hit] + 1) * nc + co[hit]
-            q0 = q1 - nc
-            gf = g.ravel()
-            g0, g1 = gf[q0], gf[q1]
-            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-                u = np.where((occ[q0] > -1e37) & (g1 > g0), (thr - g0) / (g1 - g0), 1.0)
-            u = np.clip(u, 0.0, 1.0).astype(np.float32)[:, None]
-            nq_ = nrm[q0] * (1 - u) + nrm[q1] * u
-            front = (nq_ @ w) < 0  # the hit point faces the receiver
-            R = Ec[q0] * (1 - u) + Ec[q1] * u
-            if spec_e is not None:
-                R += self._emit_spec(spec_e, nq_, w, Lc[q0] * (1 - u) + Lc[q1] * u)
-            R *= front[:, None]
-            Ac[o] += (np.float32(self.w) * cos_o)[:, None] * R
-            if As is not None:
-                As[o] += (np.float32(self.w) * self._recv_spec(specular, nrm[o], w))[:, None] * R
-
-    @staticmethod
-    def _emit_spec(spec, nq, w, lit):
-        """Specular light sent by hit points (normals nq (n, 3)) towards -w, (n, k);
-        ``lit`` is lit x rho_s x power."""
-        S_dirs = np.asarray(spec.directions, np.float32)
-        if spec.model == "ts":
-            hv = S_dirs - w[None, :]
-            hv /= np.maximum(np.linalg.norm(hv, axis=1, keepdims=True), 1e-12)
-            nn = nq / np.maximum(np.linalg.norm(nq, axis=1, keepdims=True), 1e-12)
-            c = nn @ hv.T
-        else:  # r.(-w), r = 2 (s.n) n - s
-            sn = nq @ S_dirs.T
-            c = -2.0 * sn * (nq @ w)[:, None] + (S_dirs @ w)[None, :]
-        lobe = _lobe(spec.model, np.ascontiguousarray(c, np.float32), spec.m, spec.phong_m)
-        lobe *= lit
-        return lobe
-
-    @staticmethod
-    def _recv_spec(spec, n, w):
-        """Receivers' specular response to light from w seen from v = +z, (n,)."""
-        if spec.model == "ts":
-            hv = w + np.float32([0, 0, 1])
-            hv /= np.linalg.norm(hv)
-            c = n @ hv
-        else:
-            c = 2.0 * (n @ w) * n[:, 2] - w[2]
-        return _lobe(spec.model, np.ascontiguousarray(c, np.float32), spec.m, spec.phong_m)
-
 
 def _kernel():
     """The compiled kernel module, or None without numba."""
@@ -455,34 +388,6 @@ def _kernel():
     except ImportError:
         return None
     return _interreflect_kernel
-
-
-def _levels(g, out=None):
-    """Sparse table: levels[j][rho] = max(g[rho + 1 .. rho + 2^j]) (-inf past the end)."""
-    L, nc = g.shape
-    J = max(1, int(math.ceil(math.log2(max(L, 2)))))
-    if out is None or out.shape != (J, L, nc):
-        out = np.empty((J, L, nc), np.float32)
-    out[0, :-1] = g[1:]
-    out[0, -1] = _NOTHING
-    for j in range(1, J):
-        s = 1 << (j - 1)
-        np.copyto(out[j], out[j - 1])
-        if s < L:
-            np.maximum(out[j, :-s], out[j - 1, s:], out=out[j, :-s])
-    return out
-
-
-def _first_above(levels, ro, co, thr, L, nc):
-    """Binary lifting: the last position pos >= ro with g[ro + 1 .. pos] <= thr; the
-    first hit is pos + 1 (none when pos >= L - 1)."""
-    pos = ro.astype(np.int64)
-    flat = levels.reshape(levels.shape[0], -1)
-    for j in range(levels.shape[0] - 1, -1, -1):
-        idx = np.minimum(pos, L - 1) * nc + co
-        adv = (flat[j][idx] <= thr) | (pos >= L - 1)
-        pos += adv.astype(np.int64) << j
-    return pos
 
 
 def check_bounces(samples, positions, perspective, shadows):
