@@ -27,20 +27,37 @@ Algorithm
 ---------
 The integral is a quadrature over global directions: ``samples`` azimuths times
 ``round(2 samples / pi)`` (even) elevation bins of equal solid angle (uniform in
-sin(elevation)) on the whole sphere, each of weight ``dw / pi = 4 / (n_az n_el)``.
-For one azimuth, the height field is resampled on a sheared grid whose columns are
-the rays' ground tracks (marching along the image axis closest to the azimuth, one
-whole pixel per step, linear across rays -- as :mod:`psbench.shadowmap`), so every
-ray of the azimuth is a column. For one elevation with rise T per step the first
-hit of the ray from origin rho is the first rho' > rho with
-``g(rho') > g(rho) + bias``, ``g = h - T rho``: found for all origins at once by
-binary lifting on a sparse table of running maxima (O(N log L) per direction,
-vectorized), then refined to the exact crossing between rho' - 1 and rho' (the
-profile is piecewise linear along a column), where the emitter values are
-interpolated. Directions that cannot hit anything (steeper than the steepest slope
-of the surface) or cannot reach any receiver (below every tangent plane) are
-skipped. Results are accumulated per origin and mapped back to the pixels by the
-exact inverse of the linear resampling.
+sin(elevation)) on the whole sphere, each of weight ``dw / pi = 4 / (n_az n_el)``;
+the sample's place inside its elevation bin moves from one azimuth to the next (a
+lattice, :func:`directions`). For one azimuth the height field is resampled on a
+sheared grid whose columns are the rays' ground tracks (marching along the image
+axis closest to the azimuth, one whole pixel per step, linear across rays -- as
+:mod:`psbench.shadowmap`), so every ray of the azimuth is a column. For one
+elevation with rise T per step the first hit of the ray from origin rho is the first
+rho' > rho with ``g(rho') > g(rho) + bias``, ``g = h - T rho``, refined to the exact
+crossing between rho' - 1 and rho' (the profile is piecewise linear along a
+column), where the emission is interpolated. The compiled kernel
+(:mod:`psbench._interreflect_kernel`, numba) finds the hits with one far-to-near
+stack sweep per column and fuses the loop over lights; without numba the numpy
+fallback (:mod:`psbench._interreflect_numpy`) uses binary lifting on a sparse table
+of running maxima. Directions that cannot hit anything (steeper than the steepest
+slope) or reach no receiver (below every tangent plane) are skipped. Origins and
+emission on the working grid take their values from object pixels only (a sample
+between an object and a background pixel is the object's). Results are mapped back
+to the pixels by the exact inverse of the linear resampling.
+
+Accuracy and limits
+-------------------
+Against the closed form of a Lambertian spherical cap and a brute-force patch sum
+(:mod:`psbench._interreflect_ref`; ``benchmarks/bench_interreflect.py``): the
+direction quadrature scatters pixels by about -5 % .. +4 % (5th-95th percentile) at
+24 azimuths and -2 % .. +1 % at 48; the mean is low by O(1 / size) because the
+bilinear height field cuts creases (a cup's rim, a groove's apex) about 0.4 px low:
+-2.5 % at 64^2, -1.3 % at 128^2, -0.6 % at 256^2, -0.3 % at 512^2 on the cup; a
+groove's apex column itself gets ~45 % too little (its 1-px neighbourhood is not
+resolved).
+Memory: per light, the padded emission, the accumulators and (TS/Phong) the lit
+maps, about 4 x 4 bytes x H x W (1 GB at 2048^2 x 16).
 """
 from __future__ import annotations
 

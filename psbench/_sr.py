@@ -28,6 +28,13 @@ see it -- every lit observation agrees on the wrong normal -- and only helps whe
 secondary light dominates (shadowed observations, f = 1). The subtraction, the
 iteration of Nayar, Ikeuchi and Kanade's "shape from interreflections", removes it.
 ``correct=False`` is the literal mask of the thesis, kept for comparison.
+
+Limits (measured, ``benchmarks/bench_interreflect.py``): the prediction is
+Lambertian. On Torrance-Sparrow images SR alone is worse than plain least squares
+(highlights inflate the albedo it predicts from, and it over-subtracts); it needs the
+highlight masks first (``mask="Th-Hi-Re-Sh"``). On images without interreflection it
+subtracts light that is not there. ``bounces`` should match the world: a prediction
+of one bounce leaves the second uncorrected, and vice versa.
 """
 from __future__ import annotations
 
@@ -281,6 +288,14 @@ def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.
     Returns
     -------
     SRFit
+
+    Notes
+    -----
+    With ``mask`` the expression judges the *corrected* images, from the first
+    round on: on raw images interreflection lifts shadowed observations above Th's
+    lower bound (they are lit by other points), and starting from the expression's
+    solution on the raw images was measured worse (Lambert cup, 2 bounces:
+    30.5 deg against 2.1 deg; TS cup, 1 bounce: 25.5 against 7.3).
     """
     import time
 
@@ -298,7 +313,7 @@ def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.
     tm = {"predict": 0.0, "solve": 0.0, "mask": 0.0}
     t0 = time.perf_counter()
     b = kernel.wls(images, S, _complete(base, images, S))
-    if mask is not None:
+    if mask is not None:  # evaluated on the corrected images, from round 1 on (see Notes)
         from .solve import solve as ps_solve
     n_prev = kernel.split(b)[0]
     info = {"change": [], "ne": []}
