@@ -252,8 +252,8 @@ def _angle_mean(n1, n2, omask):
 
 
 def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.5,
-             correct=True, weighted=False, max_iter=8, tol=0.02, source="model", bounces=1,
-             samples=24, size=128, sh_bias=0.5, truth_normals=None):
+             correct=True, weighted=False, max_iter=10, tol=0.02, source="model", bounces=1,
+             samples=24, size=128, sh_bias=0.5, damp=0.5, truth_normals=None):
     """Photometric stereo with the SR mask, iterated (a prototype of the mask engine's
     PS <-> normal-mask loop).
 
@@ -278,6 +278,11 @@ def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.
         SR rounds (each: predict, mask, re-solve).
     tol : float
         Stop when the mean normal change of a round is below ``tol`` degrees.
+    damp : float in [0, 1)
+        From the second round on the secondary light used is ``(1 - damp) x new +
+        damp x previous`` prediction: the fixed-point iteration can oscillate (V-groove,
+        1 bounce: mean NE 2.9 deg after 12 rounds undamped, 1.5 deg with 0.5); on the
+        cup it costs two rounds and changes nothing (0.30 / 0.29 deg).
     source, bounces, samples, size, sh_bias
         See :func:`predict`. While the normals still move by more than 1 degree a
         round (the first rounds) the prediction uses half the azimuths: its error is
@@ -305,6 +310,8 @@ def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.
     omask = as_mask(object_mask, (H, W), "object_mask")
     if not (0.0 < float(t_sr) <= 1.0):
         raise PsbenchError(f"t_sr must be in (0, 1], got {t_sr!r}")
+    if not (0.0 <= float(damp) < 1.0):
+        raise PsbenchError(f"damp must be in [0, 1), got {damp!r}")
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise PsbenchError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     base = np.ones((k, H, W), bool) if valid is None else np.asarray(valid, bool)
@@ -323,13 +330,18 @@ def solve_sr(images, lights, *, object_mask=None, valid=None, mask=None, t_sr=0.
     converged, it = False, 0
     v, w = base, None
     change = np.inf
+    sec_prev, fine = None, False
     for it in range(1, max_iter + 1):
         t = time.perf_counter()
-        ns = samples if change <= 1.0 else max(8, samples // 2)
+        fine = fine or change <= 1.0  # once fine, stay fine (no flip-flop of the quadrature)
+        ns = samples if fine else max(8, samples // 2)
         pred = predict(b, lights, object_mask=omask, images=images, valid=v, source=source,
                        bounces=bounces, samples=ns, size=size, sh_bias=sh_bias)
         tm["predict"] += time.perf_counter() - t
         t = time.perf_counter()
+        if sec_prev is not None and damp > 0:  # relaxation against oscillating rounds
+            pred.secondary = (1 - damp) * pred.secondary + damp * sec_prev
+        sec_prev = pred.secondary
         J = images - pred.secondary if correct else images
         v = base & sr_valid(pred, t_sr=t_sr)
         if mask is not None:

@@ -32,7 +32,7 @@ def test_sr_recovers_lambert_cup(lambert_cup):
     ne_sr = ps.normal_error(fit.normals, surf.normals, m)
     assert ne_none > 2.0
     assert ne_sr < 0.5
-    assert fit.converged and fit.iterations <= 8
+    assert fit.converged and fit.iterations <= 10
     # the shadowed observations (pure secondary light) are the ones SR masks
     shadow = scene.self_shadow | scene.cast_shadow
     assert (~fit.valid[shadow]).mean() > 0.9
