@@ -70,6 +70,8 @@ class Scene:
     shadows : bool or str
     quantize : int or None
     highlight_fraction : float
+    bounces : int
+        Interreflection bounces rendered (0: none).
     """
 
     images: np.ndarray
@@ -88,6 +90,7 @@ class Scene:
     highlight_fraction: float = 0.1
     _shader: Any = field(default=None, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
+    bounces: int = 0
 
     @property
     def shadow(self) -> np.ndarray:
@@ -127,9 +130,22 @@ class Scene:
 
     @property
     def clean(self) -> np.ndarray:
-        """(k, H, W) float32 noiseless, unquantised images (diffuse + specular)."""
+        """(k, H, W) float32 noiseless, unquantised images (diffuse + specular, plus the
+        secondary light when ``bounces`` > 0)."""
         d, s = self._parts()
-        return d + s
+        out = d + s
+        if "secondary" in self._cache:
+            out += self._cache["secondary"]
+        return out
+
+    @property
+    def secondary_fraction(self) -> np.ndarray:
+        """(k, H, W) float32 ground truth: the fraction of each clean pixel's intensity
+        that is secondary light (interreflections, ``render(..., bounces=1|2)``); 0 where
+        the clean pixel is 0, and everywhere when ``bounces`` = 0."""
+        if "secondary_fraction" not in self._cache:
+            self._cache["secondary_fraction"] = np.zeros(self.images.shape, np.float32)
+        return self._cache["secondary_fraction"]
 
     def __repr__(self) -> str:
         k, H, W = self.images.shape
@@ -140,7 +156,7 @@ class Scene:
 def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
            rho_d=1.0, rho_s=1.0, m=2.0, quantize=None, highlight_fraction=0.1,
            light_positions=None, falloff=False, perspective=None, phong_m=20.0,
-           shadow_bias=0.05) -> Scene:
+           shadow_bias=0.05, bounces=0, bounce_samples=24) -> Scene:
     """Render a photometric-stereo image stack with ground truth.
 
     Parameters
@@ -216,6 +232,15 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         ``bias`` passed to :func:`psbench.shadowmap.shadow_map` /
         :func:`~psbench.shadowmap.point_shadow_map` (pixel-height units; the
         rendered heights are exact, so it is small).
+    bounces : {0, 1, 2}, default 0
+        Interreflections: light reflected once (1) or twice (2) between surface
+        points that see each other is added to the direct images (unchanged);
+        ``Scene.secondary_fraction`` is its share of each clean pixel. Distant lights
+        and the orthographic camera only. Model and equations:
+        :mod:`psbench._interreflect`.
+    bounce_samples : int, default 24
+        Direction sampling density of the interreflections: azimuths of the
+        quadrature (x ~0.64 as many elevation bins); cost grows as its square.
 
     Returns
     -------
@@ -275,6 +300,16 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
             raise PsbenchError(f"perspective={f:g}: the camera (0, 0, f) must be above the surface "
                                f"(highest point {top:g})")
         perspective = f
+    if isinstance(bounces, (bool, np.bool_)) or not isinstance(bounces, (int, np.integer)) \
+            or bounces not in (0, 1, 2):
+        raise PsbenchError(f"bounces must be 0, 1 or 2, got {bounces!r}")
+    if bounces:  # interreflections: a separate, self-contained path
+        from ._interreflect import check_bounces, render_bounces
+        check_bounces(bounce_samples, pos, perspective, shadows)
+        return render_bounces(surface, lay, bounces=int(bounces), samples=int(bounce_samples),
+                              model=model, shadows=shadows, noise=noise, seed=seed,
+                              rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m, quantize=quantize,
+                              highlight_fraction=highlight_fraction, shadow_bias=shadow_bias)
 
     shader = Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
                      pos, bool(falloff), perspective, clamp=not (isinstance(shadows, str)
