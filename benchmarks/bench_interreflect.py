@@ -33,7 +33,8 @@ import psbench as ps
 from psbench._interreflect import Specular, secondary
 from psbench._interreflect_ref import reference
 from psbench._sr import solve_sr
-from psbench.surfaces_concave import cup, cup_geometry, vgroove
+from psbench.surfaces.cup import cup, cup_geometry
+from psbench.surfaces.vgroove import vgroove
 
 
 def _mask(s):

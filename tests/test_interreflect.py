@@ -10,7 +10,8 @@ from psbench import registry
 from psbench._interreflect import Specular, directions, secondary
 from psbench._interreflect_ref import reference
 from psbench.surfaces import surface_from_height
-from psbench.surfaces_concave import cup, cup_geometry, vgroove
+from psbench.surfaces.cup import cup, cup_geometry
+from psbench.surfaces.vgroove import vgroove
 
 try:
     import numba  # noqa: F401

@@ -5,7 +5,7 @@ import pytest
 import psbench as ps
 from psbench._sr import predict, solve_sr, sr_valid, sr_weights
 from psbench.surfaces import surface_from_height
-from psbench.surfaces_concave import cup
+from psbench.surfaces.cup import cup
 
 
 def _mask(s):

@@ -17,7 +17,7 @@ from psbench.registry import SurfaceSpec
 
 REPO = Path(__file__).resolve().parents[2]
 BUILTIN = {"semisphere", "spheres", "sombrero", "sombrero1", "sombrero2", "sombrero3",
-           "mozart", "penny"}
+           "mozart", "penny", "cup", "vgroove"}
 
 #: sha256 (first 32 hex digits) of height, object mask and normals bytes at size 48, taken
 #: from the single-module surfaces.py before surfaces became plug-ins: the move changed

@@ -5,7 +5,8 @@ object mask), so every point of the dent sees only other points of the dent: lig
 leaving through the opening never comes back (a ray that rises through the plane's
 level cannot meet the plane again). That makes their one-bounce interreflection
 checkable against a closed form (``cup``) or an occlusion-free brute-force sum
-(both), see :mod:`psbench._interreflect`.
+(both), see :mod:`psbench._interreflect`. Registered as the surfaces ``cup`` and
+``vgroove`` (modules :mod:`psbench.surfaces.cup`, :mod:`psbench.surfaces.vgroove`).
 
 ``cup``
     A concave spherical cap: the sphere of radius ``R`` centred at height
@@ -27,11 +28,10 @@ import math
 
 import numpy as np
 
-from ._checks import PsbenchError
-from .registry import SurfaceSpec
-from .surfaces import Surface, pixel_grid
+from .._checks import PsbenchError
+from ._surface import Surface, pixel_grid
 
-__all__ = ["cup", "vgroove", "CUP", "VGROOVE", "CUP_APERTURE", "VGROOVE_HALF_WIDTH"]
+__all__ = ["cup", "vgroove", "cup_geometry", "CUP_APERTURE", "VGROOVE_HALF_WIDTH"]
 
 #: opening radius of ``cup`` as a fraction of the size
 CUP_APERTURE = 0.45
@@ -130,8 +130,3 @@ def vgroove(size=512, *, angle=45.0):
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     return _finish("vgroove", height, mask, n)
 
-
-CUP = SurfaceSpec("cup", cup, help="concave spherical cap (60 deg half-angle) in a plane; "
-                  "object = its opening disc")
-VGROOVE = SurfaceSpec("vgroove", vgroove, help="right-angled V-groove along y in a plane; "
-                      "object = the groove")
