@@ -129,7 +129,7 @@ def test_plugin_must_return_a_surface():
 
 
 @pytest.mark.parametrize("call, match", [
-    (lambda: ps.make_surface("teapot"), r"name='teapot' is not known; valid choices: mozart, "
+    (lambda: ps.make_surface("teapot"), r"name='teapot' is not known; valid choices: cup, mozart, "
                                         r"penny, semisphere"),
     (lambda: ps.make_surface(3), "name must be a surface name"),
     (lambda: ps.make_surface("penny", size=32, gun=3), "takes no option 'gun'; its options: none"),
