@@ -120,9 +120,9 @@ def gun_marks(gun):
     Returns
     -------
     marks : dict
-        ``breech`` (GUN_GRID, GUN_GRID) float32 µm: breech-face impression field (filed
-        striations, optional turning arcs, granular texture, a few long scratches and
-        dents), RMS = ``bf_rms``. ``tip`` (same shape): the firing-pin tip's own marks.
+        ``breech`` (GUN_GRID, GUN_GRID) float32 µm: breech-face impression field, a mix
+        of filed striations, turning arcs and granular texture of RMS ``bf_rms``, plus a
+        few long scratches and dents. ``tip`` (same shape): the firing-pin tip's own marks.
         Scalars: ``fp_radius``, ``fp_depth``, ``fp_wall`` (degrees), ``fp_curv``,
         ``fp_lip``, ``ejector_angle`` (rad, gun frame), ``ejector_size`` (a, b) µm,
         ``ejector_depth``, ``bf_rms``.

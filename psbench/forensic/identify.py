@@ -308,7 +308,16 @@ def register(a, b, valid_a=None, valid_b=None, *, min_overlap=0.5, coarse=96, ca
     top = len(pyr) - 1
     r_top = pyr[top][0].shape[0] / 2.0
     step = math.degrees(1.5 / r_top)
-    lo, hi = (0.0, 360.0) if angles is None else (float(angles[0]), float(angles[1]))
+    if angles is None:
+        lo, hi = 0.0, 360.0
+    else:
+        try:
+            lo, hi = (float(v) for v in angles)
+        except (TypeError, ValueError):
+            raise PsbenchError(f"angles must be a (low, high) pair of degrees, got {angles!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise PsbenchError(f"angles must be a (low, high) pair of degrees, low < high, "
+                               f"got {angles!r}")
     grid = np.arange(lo, hi, step)
     res = search(top, grid)
     order = sorted(range(len(res)), key=lambda i: -res[i][0])

@@ -36,7 +36,7 @@ from .identify import LONG_CUTOFF, bandpass, register
 from .plane import Plane, estimate_plane, level, level_sample, tilt_surface
 from .presets import acquire
 
-__all__ = ["METHODS", "INTEGRATORS", "TRUTH", "Reconstruction", "reconstruct",
+__all__ = ["METHODS", "INTEGRATORS", "TRUTH", "TRUTH_NORMALS", "Reconstruction", "reconstruct",
            "height_error", "score_pairs", "separation", "auc", "evaluate", "plane_study"]
 
 #: method label -> keyword arguments of :func:`psbench.solve`
@@ -53,6 +53,8 @@ INTEGRATORS = {
 }
 #: the method label of the ground-truth heights (upper bound of the identification)
 TRUTH = "ground truth"
+#: the method label of the ground-truth normals, integrated (what a perfect PS gives)
+TRUTH_NORMALS = "ground-truth normals"
 
 
 def _detrend(d, region, plane):
@@ -85,19 +87,21 @@ class Reconstruction:
         ne_breech_face, ne_firing_pin, err_firing_pin_um, err_wall_um,
         err_breech_face_um, solve_s, integrate_s``.
     filtered : dict
-        (method, integrator) -> (band-passed breech-face heights (µm), valid mask),
-        cropped to the breech face's bounding box; the ground truth under
-        (:data:`TRUTH`, "-").
+        (method, integrator, region) -> (band-passed heights (µm), valid mask), cropped
+        to the region's bounding box; the ground truth under (:data:`TRUTH`, "-", region).
     normals : dict
         method -> (H, W, 3) normals (only with ``keep_normals``).
     acquisition : Acquisition or None
         Only with ``keep_normals``.
+    pose : dict
+        The case's :attr:`Cartridge.pose` (ground truth of the registration).
     """
 
     rows: list
     filtered: dict
     normals: dict
     acquisition: object = None
+    pose: dict = None
 
 
 def _crop(z, m):
@@ -108,7 +112,7 @@ def _crop(z, m):
 
 def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRATORS),
                 seed=0, short=None, long=LONG_CUTOFF, keep_normals=False,
-                solve_options=None):
+                solve_options=None, truth_normals=False, compare=("breech_face",)):
     """Acquire, solve, integrate and filter one case with every method and integrator.
 
     Parameters
@@ -126,6 +130,14 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
         Keep the normals and the acquisition (for figures).
     solve_options : dict, optional
         Extra keyword arguments for every :func:`psbench.solve` call.
+    truth_normals : bool
+        Also integrate the ground-truth normals (method :data:`TRUTH_NORMALS`): the
+        integrators' own share of the error, and the identification's upper bound
+        through integration.
+    compare : sequence of str
+        Regions (keys of :attr:`Cartridge.regions`) whose band-passed heights are kept
+        for the identification: ``"breech_face"`` (the field's comparison) and/or
+        ``"firing_pin"`` (the impression, where shadows and highlights are).
 
     Returns
     -------
@@ -143,15 +155,30 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
     reg = c.regions
     bf = reg["breech_face"] & c.mask
     truth = c.height_um
+    for region in compare:
+        if region not in reg:
+            raise PsbenchError(f"compare region {region!r} is not known; valid choices: "
+                               f"{', '.join(reg)}")
+    rois = {r: reg[r] & c.mask for r in compare}
+
+    def keep(label, integ, h):
+        for r, roi in rois.items():
+            filtered[(label, integ, r)] = _crop(
+                bandpass(h, roi, pixel_size=ps_, short=short, long=long), roi)
+
     acq = acquire(c, seed=seed)
-    filtered = {(TRUTH, "-"): _crop(bandpass(truth, bf, pixel_size=ps_, short=short, long=long), bf)}
+    filtered = {}
+    keep(TRUTH, "-", truth)
     rows, normals = [], {}
-    for name in methods:
+    for name in ((TRUTH_NORMALS,) if truth_normals else ()) + tuple(methods):
         t0 = time.perf_counter()
-        res = solve(acq.images, acq.lights, object_mask=c.mask, **METHODS[name],
-                    **(solve_options or {}))
+        if name == TRUTH_NORMALS:
+            res, n = None, c.normals
+        else:
+            res = solve(acq.images, acq.lights, object_mask=c.mask, **METHODS[name],
+                        **(solve_options or {}))
+            n = res.normals
         t_solve = time.perf_counter() - t0
-        n = res.normals
         if keep_normals:
             normals[name] = n
         base = {"gun": c.gun, "case": c.case, "method": name,
@@ -167,13 +194,12 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
                          "err_firing_pin_um": height_error(h, truth, reg["firing_pin"]),
                          "err_wall_um": height_error(h, truth, reg["firing_pin_wall"]),
                          "err_breech_face_um": height_error(h, truth, bf, plane=True)})
-            filtered[(name, integ)] = _crop(
-                bandpass(h, bf, pixel_size=ps_, short=short, long=long), bf)
+            keep(name, integ, h)
         del res, n
-    return Reconstruction(rows, filtered, normals, acq if keep_normals else None)
+    return Reconstruction(rows, filtered, normals, acq if keep_normals else None, dict(c.pose))
 
 
-def score_pairs(filtered, *, sister=None, **register_options):
+def score_pairs(filtered, *, sister=None, poses=None, **register_options):
     """CCFmax of every pair of cases.
 
     Parameters
@@ -183,6 +209,9 @@ def score_pairs(filtered, *, sister=None, **register_options):
         :attr:`Reconstruction.filtered` per case.
     sister : callable, optional
         ``sister(key_a, key_b) -> bool``; default: same gun (``key[0]``).
+    poses : dict, optional
+        key -> :attr:`Cartridge.pose`: adds ``angle_true`` (the rotation that lays b's
+        gun marks on a's) and ``angle_error`` (degrees, sister pairs only).
     **register_options
         Passed to :func:`~.identify.register`.
 
@@ -197,9 +226,13 @@ def score_pairs(filtered, *, sister=None, **register_options):
         (za, ma), (zb, mb) = filtered[ka], filtered[kb]
         t0 = time.perf_counter()
         m = register(za, zb, ma, mb, **register_options)
-        rows.append({"a": ka, "b": kb, "sister": bool(same(ka, kb)), "ccf": m.ccf,
-                     "angle": m.angle, "overlap": m.overlap,
-                     "seconds": time.perf_counter() - t0})
+        row = {"a": ka, "b": kb, "sister": bool(same(ka, kb)), "ccf": m.ccf,
+               "angle": m.angle, "overlap": m.overlap, "seconds": time.perf_counter() - t0}
+        if poses is not None:
+            true = (poses[ka]["gun_angle"] - poses[kb]["gun_angle"]) % 360.0
+            err = abs((m.angle - true + 180.0) % 360.0 - 180.0)
+            row.update(angle_true=true, angle_error=err if row["sister"] else float("nan"))
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -215,11 +248,13 @@ def auc(positive, negative):
     return float((gt + 0.5 * eq) / (len(p) * len(q)))
 
 
-def separation(scores, by=("method", "integrator")):
+def separation(scores, by=("region", "method", "integrator")):
     """Per group: sister / non-sister score statistics, separation and AUC.
 
     ``separation`` = smallest sister CCFmax - largest non-sister CCFmax (> 0: a
-    threshold separates every pair); ``auc`` as :func:`auc`.
+    threshold separates every pair); ``auc`` as :func:`auc`; ``registered`` the
+    fraction of sister pairs registered within 1° of the true rotation (when the
+    scores carry ``angle_error``).
     """
     out = []
     for key, g in scores.groupby(list(by), sort=False):
@@ -228,13 +263,16 @@ def separation(scores, by=("method", "integrator")):
                     "sister_min": s.min(), "sister_median": s.median(),
                     "non_sister_median": n.median(), "non_sister_max": n.max(),
                     "separation": s.min() - n.max(), "auc": auc(s, n),
-                    "n_sister": int(len(s)), "n_non_sister": int(len(n))})
+                    "n_sister": int(len(s)), "n_non_sister": int(len(n)),
+                    "registered": (float((g.loc[g.sister, "angle_error"] < 1.0).mean())
+                                   if "angle_error" in g else float("nan"))})
     return pd.DataFrame(out)
 
 
 def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
              integrators=tuple(INTEGRATORS), seed=0, short=None, long=LONG_CUTOFF,
-             solve_options=None, register_options=None, progress=None):
+             solve_options=None, register_options=None, truth_normals=True,
+             compare=("breech_face", "firing_pin"), progress=None):
     """The Chapter 7 table: reconstruct every case, score every pair per method.
 
     Parameters
@@ -244,7 +282,7 @@ def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
         share the gun.
     size : int, default 512
         Image side (pixel size 4.9 x 2048 / size µm).
-    methods, integrators, seed, short, long, solve_options
+    methods, integrators, seed, short, long, solve_options, truth_normals, compare
         As :func:`reconstruct`.
     register_options : dict, optional
         Passed to :func:`~.identify.register`.
@@ -256,29 +294,32 @@ def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
     per_case : DataFrame
         :attr:`Reconstruction.rows` of every case.
     scores : DataFrame
-        :func:`score_pairs` rows with ``method`` and ``integrator`` columns.
+        :func:`score_pairs` rows with ``region``, ``method`` and ``integrator`` columns.
     summary : DataFrame
-        :func:`separation` per (method, integrator), ground truth included, joined with
-        the mean NE, height errors and times of each method/integrator.
+        :func:`separation` per (region, method, integrator), ground truth included,
+        joined with the mean NE, height errors and times of each method/integrator.
     """
-    per_case, by_group = [], {}
+    per_case, by_group, poses = [], {}, {}
     for g, cs in itertools.product(guns, cases):
         rec = reconstruct(make_cartridge(size, gun=g, case=cs), methods=methods,
                           integrators=integrators, seed=seed, short=short, long=long,
-                          solve_options=solve_options)
+                          solve_options=solve_options, truth_normals=truth_normals,
+                          compare=compare)
         per_case.extend(rec.rows)
+        poses[(g, cs)] = rec.pose
         for key, val in rec.filtered.items():
             by_group.setdefault(key, {})[(g, cs)] = val
         if progress:
             progress(f"case gun={g} case={cs} done")
     frames = []
-    for (method, integ), filt in by_group.items():
-        sc = score_pairs(filt, **(register_options or {}))
+    for (method, integ, region), filt in by_group.items():
+        sc = score_pairs(filt, poses=poses, **(register_options or {}))
         sc.insert(0, "integrator", integ)
         sc.insert(0, "method", method)
+        sc.insert(0, "region", region)
         frames.append(sc)
         if progress:
-            progress(f"scored {method} / {integ}")
+            progress(f"scored {region}: {method} / {integ}")
     scores = pd.concat(frames, ignore_index=True)
     per_case = pd.DataFrame(per_case)
     summary = separation(scores)

@@ -21,7 +21,7 @@ def test_height_error_removes_offset_or_plane():
 def test_auc_and_separation():
     assert P.auc([0.9, 0.8], [0.1, 0.2, 0.3]) == 1.0
     assert P.auc([0.1], [0.2]) == 0.0 and P.auc([0.5], [0.5]) == 0.5
-    scores = pd.DataFrame({"method": ["m"] * 4, "integrator": ["i"] * 4,
+    scores = pd.DataFrame({"region": ["r"] * 4, "method": ["m"] * 4, "integrator": ["i"] * 4,
                            "sister": [True, True, False, False],
                            "ccf": [0.7, 0.5, 0.2, 0.55]})
     row = P.separation(scores).iloc[0]
@@ -41,11 +41,16 @@ def test_reconstruct_and_score_pairs():
     for k in ("ne", "ne_breech_face", "ne_firing_pin", "err_firing_pin_um", "err_wall_um",
               "err_breech_face_um", "solve_s", "integrate_s"):
         assert np.isfinite(row[k]), k
-    assert set(r.filtered) == {(P.TRUTH, "-"), ("None", "poisson")}
-    for name in ((P.TRUTH, "-"), ("None", "poisson")):
-        sc = P.score_pairs({k: v.filtered[name] for k, v in rec.items()})
+    assert set(r.filtered) == {(P.TRUTH, "-", "breech_face"), ("None", "poisson", "breech_face")}
+    for name in ((P.TRUTH, "-", "breech_face"), ("None", "poisson", "breech_face")):
+        sc = P.score_pairs({k: v.filtered[name] for k, v in rec.items()},
+                           poses={k: v.pose for k, v in rec.items()})
         assert len(sc) == 3 and sc.sister.sum() == 1
         assert sc.loc[sc.sister, "ccf"].min() > sc.loc[~sc.sister, "ccf"].max()
+        assert sc.loc[sc.sister, "angle_error"].max() < 1.0     # registered correctly
+        assert sc.loc[~sc.sister, "angle_error"].isna().all()
+    summary = P.separation(sc.assign(region="breech_face", method="m", integrator="i"))
+    assert summary.registered.iloc[0] == 1.0 and summary.auc.iloc[0] == 1.0
 
 
 def test_unknown_names():
@@ -54,3 +59,5 @@ def test_unknown_names():
         P.reconstruct(c, methods=("bogus",))
     with pytest.raises(PsbenchError, match="integrator"):
         P.reconstruct(c, integrators=("bogus",))
+    with pytest.raises(PsbenchError, match="region"):
+        P.reconstruct(c, compare=("bogus",))
