@@ -128,8 +128,8 @@ def main(argv=None):
     print("median per stage: wall s, process CPU s (user+system, all threads)")
     for k in STAGES:
         print(f"  {k:<12} {med[k]:8.2f} {cpu[k]:8.2f}")
-    print(f"pipeline CPU time {cpu['pipeline']:.2f} s: on {cores} idle cores the wall time would be "
-          f"at most that")
+    print(f"pipeline CPU time {cpu['pipeline']:.2f} s: on {cores} idle cores the wall "
+          f"time would be about that or less")
     print(f"pipeline (acquire+solve+integrate+compare): {med['pipeline']:.2f} s "
           f"(target <= {TARGET_S:g} s: {'met' if med['pipeline'] <= TARGET_S else 'NOT met'}); "
           f"{med['pipeline'] / med['baseline_fft']:.1f} x the FFT baseline")

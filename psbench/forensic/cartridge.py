@@ -67,6 +67,7 @@ _BEVEL_W, _BEVEL_H = 220.0, 180.0          # chamfer width and drop (µm)
 _BACKGROUND = -700.0                       # holder level below the head face (µm)
 _TEXT_R, _TEXT_H, _TEXT_STROKE, _TEXT_DEPTH = 3450.0, 800.0, 110.0, 60.0
 _WALL_SLOPE = 30.0                         # firing-pin wall: surface zenith above this (deg)
+_f32 = np.float32
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,7 +147,8 @@ def check_pixel_size(pixel_size, name="pixel_size"):
     try:
         v = float(pixel_size)
     except (TypeError, ValueError):
-        raise PsbenchError(f"{name} must be a number of micrometres > 0, got {pixel_size!r}") from None
+        raise PsbenchError(f"{name} must be a number of micrometres > 0, "
+                           f"got {pixel_size!r}") from None
     if not math.isfinite(v) or v <= 0:
         raise PsbenchError(f"{name} must be a finite number of micrometres > 0, got {pixel_size!r}")
     return v
@@ -282,79 +284,93 @@ def make_cartridge(size=2048, *, gun=0, case=0, pixel_size=None, finish=None):
 
     x, y = F.grid_xy(size, ps)
     R, Rp = CASE_DIAMETER / 2, PRIMER_RADIUS
-    dx, dy = x - np.float32(pose["case_x"]), y - np.float32(pose["case_y"])
+    dx, dy = x - _f32(pose["case_x"]), y - _f32(pose["case_y"])
     rho = np.sqrt(dx * dx + dy * dy)
     xc, yc = _rotate(dx, dy, math.radians(pose["case_angle"]))
-    xg, yg = _rotate(x - np.float32(pose["gun_x"]), y - np.float32(pose["gun_y"]),
+    xg, yg = _rotate(x - _f32(pose["gun_x"]), y - _f32(pose["gun_y"]),
                      math.radians(pose["gun_angle"]))
     rg = np.sqrt(xg * xg + yg * yg)
 
     # head: flat face with a slight bulge, chamfer, holder far below
-    z = np.float32(2.0) * (1.0 - (rho / np.float32(R)) ** 2)
-    z = z - np.float32(_BEVEL_H) * F.smoothstep((rho - np.float32(R - _BEVEL_W)) / np.float32(_BEVEL_W))
-    z = np.where(rho < R, z, np.float32(_BACKGROUND)).astype(np.float32)
+    z = _f32(2.0) * (1.0 - (rho / _f32(R)) ** 2)
+    z = z - _f32(_BEVEL_H) * F.smoothstep((rho - _f32(R - _BEVEL_W)) / _f32(_BEVEL_W))
+    z = np.where(rho < R, z, _f32(_BACKGROUND)).astype(np.float32)
     # case texture: fine isotropic roughness and its own turning marks
     tex = F.band(rng, size, ps, max(14.0, 2.0 * ps), 150.0)
-    turn = np.cos(np.float32(2 * np.pi / rng.uniform(40, 90)) * rho + np.float32(rng.uniform(0, 6.3)))
+    turn = np.cos(_f32(2 * np.pi / rng.uniform(40, 90)) * rho + _f32(rng.uniform(0, 6.3)))
     # headstamp letters, stamped into the head face
     letters = _headstamp(xc, yc, rho, texts, ps)
-    sig = max(15.0 / ps, 0.5)
-    letters = cv2.GaussianBlur(letters, (0, 0), sigmaX=sig)
-    z -= np.float32(_TEXT_DEPTH) * letters
+    letters = cv2.GaussianBlur(letters, (0, 0), sigmaX=max(15.0 / ps, 0.5))
+    z -= _f32(_TEXT_DEPTH) * letters
     # primer: seated below the face, rounded cup edge, pocket gap
-    seat = pose["primer_seat"]
-    in_primer = _soft(np.float32(Rp) - rho, max(8.0, aa))
-    primer_z = -np.float32(seat) - np.float32(25.0) * F.smoothstep((rho - np.float32(Rp - 90)) / np.float32(90))
+    in_primer = _soft(_f32(Rp) - rho, max(8.0, aa))
+    primer_z = -_f32(pose["primer_seat"]) \
+        - _f32(25.0) * F.smoothstep((rho - _f32(Rp - 90)) / _f32(90))
     z = z * (1 - in_primer) + primer_z * in_primer
-    z -= np.float32(60.0) * np.exp(-((rho - np.float32(Rp + 15)) / np.float32(max(15.0, aa))) ** 2)
-    # firing-pin impression (gun frame): bowl with steep tanh walls and a raised lip
-    Rf, Df, c = gm["fp_radius"], gm["fp_depth"] * pose["depth_scale"] * fp_scale, gm["fp_curv"]
-    w = max(Df * (1 - c) / (2 * Rf * math.tan(math.radians(gm["fp_wall"]))), aa / Rf)
-    u = rg / np.float32(Rf)
-    bowl = -np.float32(Df) * (1 - np.float32(c) * u * u) * 0.5 * (1 - np.tanh((u - 1) / np.float32(w)))
-    lip_u = 1 + 3 * w + 0.05
-    bowl += np.float32(gm["fp_lip"] * lip_scale) * np.exp(-((u - np.float32(lip_u)) / np.float32(0.06)) ** 2)
+    z -= _f32(60.0) * np.exp(-((rho - _f32(Rp + 15)) / _f32(max(15.0, aa))) ** 2)
+    # firing-pin impression (gun frame)
+    bowl, u, lip_u = _firing_pin(rg, gm, pose["depth_scale"] * fp_scale, lip_scale, aa)
     z += bowl * in_primer
     # the gun's marks, impressed with this case's depth and a patchy transfer
-    face = 1.0 - F.smoothstep((rho - np.float32(Rp - 160)) / np.float32(100))
+    face = 1.0 - F.smoothstep((rho - _f32(Rp - 160)) / _f32(100))
     transfer = np.clip(0.7 + 0.35 * _coarse_field(rng, size, 0.08, (size, size)), 0.3, 1.0)
-    w_bf = face * F.smoothstep((u - np.float32(lip_u + 0.05)) / np.float32(0.2)) * transfer
-    w_tip = 1.0 - F.smoothstep((u - np.float32(0.55)) / np.float32(0.3))
+    w_bf = face * F.smoothstep((u - _f32(lip_u + 0.05)) / _f32(0.2)) * transfer
+    w_tip = 1.0 - F.smoothstep((u - _f32(0.55)) / _f32(0.3))
     marks = w_bf * F.sample(gm["breech"], xg, yg, spacing=F.GUN_SPACING, pixel_size=ps) \
         + w_tip * F.sample(gm["tip"], xg, yg, spacing=F.GUN_SPACING, pixel_size=ps)
-    z += np.float32(pose["depth_scale"]) * marks
+    z += _f32(pose["depth_scale"]) * marks
     # ejector mark near the rim (gun frame)
-    ea = gm["ejector_angle"]
-    re = R - 700.0
-    du, dv = _rotate(xg - np.float32(re * math.cos(ea)), yg - np.float32(re * math.sin(ea)), ea)
-    a, b = gm["ejector_size"]
-    box = _soft(np.float32(a) - np.abs(du), max(20.0, aa)) * _soft(np.float32(b) - np.abs(dv), max(20.0, aa))
-    striae = np.sin(np.float32(2 * np.pi / 35.0) * dv + np.float32(gm["ejector_angle"] * 7))
-    z -= np.float32(pose["depth_scale"]) * box * (np.float32(gm["ejector_depth"]) + 1.5 * striae)
+    box, striae = _ejector(xg, yg, gm, R, aa)
+    z -= _f32(pose["depth_scale"]) * box * (_f32(gm["ejector_depth"]) + 1.5 * striae)
     # the case's own texture (less on the primer, whose face took the breech's)
     head = (1 - in_primer) * (rho < R)
     z += (0.3 + 0.3 * head) * tex + 0.3 * head * turn
 
-    case_mask = rho < np.float32(R - ps)
-    height = np.where(case_mask, z, np.minimum(z, np.float32(_BACKGROUND))) / np.float32(ps)
+    case_mask = rho < _f32(R - ps)
+    height = np.where(case_mask, z, np.minimum(z, _f32(_BACKGROUND))) / _f32(ps)
     normals = _normals(height)
     zen = np.degrees(np.arccos(np.clip(normals[..., 2], -1, 1)))
-    fp = (u < np.float32(lip_u + 0.1)) & (rho < Rp)
+    fp = (u < _f32(lip_u + 0.1)) & (rho < Rp)
     regions = {
         "case": case_mask,
-        "bevel": case_mask & (rho > np.float32(R - _BEVEL_W)),
+        "bevel": case_mask & (rho > _f32(R - _BEVEL_W)),
         "headstamp": case_mask & (letters > 0.5),
-        "primer": rho < np.float32(Rp),
-        "breech_face": (rho < np.float32(Rp - 160)) & (u > np.float32(lip_u + 0.25)),
+        "primer": rho < _f32(Rp),
+        "breech_face": (rho < _f32(Rp - 160)) & (u > _f32(lip_u + 0.25)),
         "firing_pin": fp,
         "firing_pin_wall": fp & (zen > _WALL_SLOPE) & (u > 0.6),
         "ejector": case_mask & (box > 0.5),
     }
     albedo = 1.0 + 0.08 * _coarse_field(rng, size, 0.15, (size, size))
-    albedo = albedo * np.where(regions["primer"], np.float32(rng.uniform(0.8, 1.1)), np.float32(1.0))
+    albedo = albedo * np.where(regions["primer"], _f32(rng.uniform(0.8, 1.1)), _f32(1.0))
     return Cartridge(name=f"cartridge(gun={gun},case={case})", height=height, mask=case_mask,
                      normals=normals, pixel_size=ps, gun=gun, case=case, finish=chosen,
                      albedo=albedo.astype(np.float32), regions=regions, pose=pose)
+
+
+def _firing_pin(rg, gm, depth_scale, lip_scale, aa):
+    """Concave impression at gun-frame radius ``rg`` (µm): a bowl ``-D (1 - c u²)`` with
+    tanh walls of the gun's wall angle and a raised lip; returns (heights, u, lip_u)."""
+    Rf, Df, c = gm["fp_radius"], gm["fp_depth"] * depth_scale, gm["fp_curv"]
+    # tanh half width (in u = r / Rf) giving the wall angle at u = 1, never under a pixel
+    w = max(Df * (1 - c) / (2 * Rf * math.tan(math.radians(gm["fp_wall"]))), aa / Rf)
+    u = rg / _f32(Rf)
+    bowl = -_f32(Df) * (1 - _f32(c) * u * u) * 0.5 * (1 - np.tanh((u - 1) / _f32(w)))
+    lip_u = 1 + 3 * w + 0.05
+    bowl += _f32(gm["fp_lip"] * lip_scale) * np.exp(-((u - _f32(lip_u)) / _f32(0.06)) ** 2)
+    return bowl, u, lip_u
+
+
+def _ejector(xg, yg, gm, R, aa):
+    """Footprint (0..1) and striae of the ejector mark, 700 µm in from the rim."""
+    ea = gm["ejector_angle"]
+    re = R - 700.0
+    du, dv = _rotate(xg - _f32(re * math.cos(ea)), yg - _f32(re * math.sin(ea)), ea)
+    a, b = gm["ejector_size"]
+    w = max(20.0, aa)
+    box = _soft(_f32(a) - np.abs(du), w) * _soft(_f32(b) - np.abs(dv), w)
+    striae = np.sin(_f32(2 * np.pi / 35.0) * dv + _f32(ea * 7))
+    return box, striae
 
 
 def _spec():

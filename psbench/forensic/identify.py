@@ -46,6 +46,10 @@ __all__ = ["SHORT_CUTOFF", "LONG_CUTOFF", "cutoff_sigma", "bandpass", "Match", "
 SHORT_CUTOFF = 16.0
 #: long-wavelength cut-off (µm) of breech-face comparisons
 LONG_CUTOFF = 250.0
+#: default short cut-off in pixels when 16 µm is finer than that (coarse images):
+#: wavelengths of 2-3 pixels do not survive resampling at another rotation (two
+#: cases are sampled on differently oriented grids), so they would only add noise
+SHORT_FLOOR = 3.0
 _SIGMA_PER_CUTOFF = math.sqrt(math.log(2.0)) / (math.pi * math.sqrt(2.0))   # 0.18739
 
 
@@ -66,7 +70,7 @@ def _cutoffs(shape, pixel_size, short, long):
     nyq = 2.0 * pixel_size
     extent = min(shape) * pixel_size
     if short is None:
-        short = max(SHORT_CUTOFF, nyq)
+        short = max(SHORT_CUTOFF, SHORT_FLOOR * pixel_size)
     else:
         short = float(short)
         if not math.isfinite(short) or short < nyq:
@@ -93,8 +97,9 @@ def bandpass(height, valid=None, *, pixel_size, short=None, long=LONG_CUTOFF):
     pixel_size : float
         µm per pixel.
     short : float, optional
-        Short-wavelength cut-off, µm; default :data:`SHORT_CUTOFF` (16 µm) or the
-        Nyquist wavelength 2 x pixel_size if that is longer. Must be >= 2 x pixel_size.
+        Short-wavelength cut-off, µm; default :data:`SHORT_CUTOFF` (16 µm), or 3 pixels
+        (:data:`SHORT_FLOOR`) on images too coarse for 16 µm. Must be >= 2 x pixel_size
+        (the Nyquist wavelength).
     long : float, default 250
         Long-wavelength cut-off, µm; > short and at most the image's extent.
 
@@ -232,7 +237,9 @@ def _peak(r, radius=None):
 
     def sub(c, minus, plus):
         d = minus - 2 * c + plus
-        return 0.0 if not np.isfinite(d) or d >= 0 else float(np.clip(0.5 * (minus - plus) / d, -0.5, 0.5))
+        if not np.isfinite(d) or d >= 0:
+            return 0.0
+        return float(np.clip(0.5 * (minus - plus) / d, -0.5, 0.5))
 
     dy = sub(v, r[(y - 1) % H, x], r[(y + 1) % H, x])
     dx = sub(v, r[y, (x - 1) % W], r[y, (x + 1) % W])
@@ -314,7 +321,8 @@ def register(a, b, valid_a=None, valid_b=None, *, min_overlap=0.5, coarse=96, ca
         try:
             lo, hi = (float(v) for v in angles)
         except (TypeError, ValueError):
-            raise PsbenchError(f"angles must be a (low, high) pair of degrees, got {angles!r}") from None
+            raise PsbenchError(f"angles must be a (low, high) pair of degrees, "
+                               f"got {angles!r}") from None
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise PsbenchError(f"angles must be a (low, high) pair of degrees, low < high, "
                                f"got {angles!r}")
