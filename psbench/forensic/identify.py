@@ -51,6 +51,7 @@ LONG_CUTOFF = 250.0
 #: cases are sampled on differently oriented grids), so they would only add noise
 SHORT_FLOOR = 3.0
 _SIGMA_PER_CUTOFF = math.sqrt(math.log(2.0)) / (math.pi * math.sqrt(2.0))   # 0.18739
+_PRUNE_SIDE = 160   # window side (pixels) from which only the best candidate is refined
 
 
 def cutoff_sigma(cutoff, pixel_size):
@@ -265,7 +266,8 @@ def register(a, b, valid_a=None, valid_b=None, *, min_overlap=0.5, coarse=96, ca
         The rotation search runs on the pyramid level whose window is at most this many
         pixels; its angle step is ~1.5 pixels of arc at the window's edge.
     candidates : int, default 3
-        Best coarse angles (at least 6 steps apart) refined to full resolution.
+        Best coarse angles (at least 6 steps apart) refined until the pyramid level's
+        window is 160 pixels wide; the best of them is refined to full resolution.
     angles : (float, float), optional
         Range of rotation (degrees) to search; default the full circle.
 
@@ -340,14 +342,15 @@ def register(a, b, valid_a=None, valid_b=None, *, min_overlap=0.5, coarse=96, ca
             break
     if not picks:
         return Match(float("nan"), float("nan"), np.full((2, 3), np.nan), 0.0)
-    best = None
-    for v, ang, tx, ty in picks:
-        st = step
-        for level in range(top - 1, -1, -1):
-            r_l = pyr[level][0].shape[0] / 2.0
-            new = math.degrees(1.0 / r_l)
-            lst = ang + np.arange(-st, st + 1e-9, new)
-            cand = search(level, lst, centre=(tx, ty), radius=3)
+    # refine every candidate level by level; once the windows are large enough to
+    # tell them apart (_PRUNE_SIDE), only the best goes on to the costly fine levels
+    states, st = list(picks), step
+    for level in range(top - 1, -1, -1):
+        r_l = pyr[level][0].shape[0] / 2.0
+        new = math.degrees(1.0 / r_l)
+        refined = []
+        for v, ang, tx, ty in states:
+            cand = search(level, ang + np.arange(-st, st + 1e-9, new), centre=(tx, ty), radius=3)
             v, ang, tx, ty = max(cand, key=lambda c: c[0])
             # parabolic angle refinement through the best and its neighbours
             vals = {round(c[1], 9): c[0] for c in cand}
@@ -356,7 +359,13 @@ def register(a, b, valid_a=None, valid_b=None, *, min_overlap=0.5, coarse=96, ca
                 d = vm - 2 * v + vp
                 if d < 0:
                     ang += float(np.clip(0.5 * (vm - vp) / d, -0.5, 0.5)) * new
-            st = new
+            refined.append((v, ang, tx, ty))
+        states = refined
+        if len(states) > 1 and 2 * r_l >= _PRUNE_SIDE:
+            states = [max(states, key=lambda c: c[0] if np.isfinite(c[0]) else -np.inf)]
+        st = new
+    best = None
+    for v, ang, tx, ty in states:
         Br, MBr, M = _rot(pyr[0][2], pyr[0][3], ang, (tx, ty), cv2.INTER_CUBIC)
         val = ncc(pyr[0][0], Br, pyr[0][1], MBr)
         if best is None or (np.isfinite(val) and val > best[0]):

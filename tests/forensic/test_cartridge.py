@@ -81,9 +81,9 @@ def test_bad_input(kwargs, word):
 
 
 def test_max_pixel_size_is_the_limit():
-    make_cartridge(256, gun=0, case=0, pixel_size=MAX_PIXEL_SIZE)
+    make_cartridge(256, gun=1, case=0, pixel_size=MAX_PIXEL_SIZE)
     with pytest.raises(PsbenchError, match="too coarse"):
-        make_cartridge(256, gun=0, case=0, pixel_size=MAX_PIXEL_SIZE * 1.01)
+        make_cartridge(256, gun=1, case=0, pixel_size=MAX_PIXEL_SIZE * 1.01)
 
 
 def test_surface_spec_and_entry_point():

@@ -56,7 +56,7 @@ def test_bad_cutoffs(kwargs, word):
 
 @pytest.fixture(scope="module")
 def marks():
-    c = make_cartridge(512, gun=5, case=1)
+    c = make_cartridge(512, gun=2, case=1)
     v = c.regions["breech_face"]
     return bandpass(c.height_um, v, pixel_size=c.pixel_size, short=4 * c.pixel_size), v
 
@@ -92,6 +92,6 @@ def test_compare_and_bad_register_input(marks):
         register(f, f, v, v, min_overlap=0)
     with pytest.raises(PsbenchError, match="valid"):
         register(f, f, np.zeros_like(v), v)
-    c = make_cartridge(512, gun=5, case=1)
+    c = make_cartridge(512, gun=2, case=1)
     m = compare(c.height_um, c.height_um, v, v, pixel_size=c.pixel_size)
     assert m.ccf > 0.99 and min(m.angle, 360 - m.angle) < 0.2

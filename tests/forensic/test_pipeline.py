@@ -54,7 +54,7 @@ def test_reconstruct_and_score_pairs():
 
 
 def test_unknown_names():
-    c = make_cartridge(256)
+    c = make_cartridge(256, gun=1, case=1)
     with pytest.raises(PsbenchError, match="method"):
         P.reconstruct(c, methods=("bogus",))
     with pytest.raises(PsbenchError, match="integrator"):
