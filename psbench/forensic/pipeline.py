@@ -9,13 +9,21 @@ integrators, :func:`evaluate` renders each case with the Chapter 7 acquisition
 - height errors in µm over the firing pin (offset removed), its walls (offset removed)
   and the breech face (best plane removed);
 - the solve and integration times;
-- the identification: CCFmax (:func:`psbench.forensic.identify.compare`) of every pair
-  of cases, sister pairs (same gun) and non-sister pairs, and per method/integrator
-  the separation (smallest sister score minus largest non-sister score) and the area
-  under the ROC curve. The ground-truth heights are scored too, as the upper bound.
+- the identification: CCFmax (:func:`psbench.forensic.identify.register` on band-passed
+  heights) of every pair of cases, sister pairs (same gun) and non-sister pairs, per
+  comparison region, and per method/integrator the separation (smallest sister score
+  minus largest non-sister score), the area under the ROC curve and how often the
+  registration found the true rotation.
 
-The comparison region of each case is its ground-truth breech-face region: the
-segmentation of the breech face is not what is under test here.
+Two references are scored beside the methods: the ground-truth heights
+(:data:`TRUTH`) and the integrated ground-truth normals (:data:`TRUTH_NORMALS`, what a
+perfect PS would give after integration). On coarse images the latter is the better
+upper bound: integration of central-difference normals attenuates the shortest
+wavelengths, where the case's own texture (not shared by sisters) weighs most.
+
+The comparison regions are each case's ground-truth regions (``breech_face``, the
+field's comparison, and ``firing_pin``, the impression): the segmentation is not what
+is under test here. :func:`plane_study` measures the sample-plane correction.
 """
 from __future__ import annotations
 
