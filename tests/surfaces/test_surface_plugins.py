@@ -17,7 +17,7 @@ from psbench.registry import SurfaceSpec
 
 REPO = Path(__file__).resolve().parents[2]
 BUILTIN = {"semisphere", "spheres", "sombrero", "sombrero1", "sombrero2", "sombrero3",
-           "mozart", "penny", "cup", "vgroove"}
+           "mozart", "penny", "cup", "vgroove", "cartridge", "cartridge_case"}
 
 #: sha256 (first 32 hex digits) of height, object mask and normals bytes at size 48, taken
 #: from the single-module surfaces.py before surfaces became plug-ins: the move changed
@@ -129,7 +129,7 @@ def test_plugin_must_return_a_surface():
 
 
 @pytest.mark.parametrize("call, match", [
-    (lambda: ps.make_surface("teapot"), r"name='teapot' is not known; valid choices: cup, mozart, "
+    (lambda: ps.make_surface("teapot"), r"name='teapot' is not known; valid choices: cartridge, cartridge_case, cup, mozart, "
                                         r"penny, semisphere"),
     (lambda: ps.make_surface(3), "name must be a surface name"),
     (lambda: ps.make_surface("penny", size=32, gun=3), "takes no option 'gun'; its options: none"),
