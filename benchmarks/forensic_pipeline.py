@@ -38,7 +38,7 @@ import numpy as np
 import scipy.fft as sfft
 import psbench as ps
 from psbench.forensic import make_cartridge, acquire, bandpass, register
-from psbench.forensic.pipeline import METHODS, INTEGRATORS
+from psbench.forensic.pipeline import INTEGRATORS, solve_kwargs
 
 size, method, integrator = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 out = {"cpu": {}}
@@ -68,7 +68,7 @@ images, lights = acq.images, acq.lights
 out["mean_level"] = acq.mean_level
 del acq
 t = lap("acquire", t)
-res = ps.solve(images, lights, object_mask=case.object_mask, **METHODS[method])
+res = ps.solve(images, lights, object_mask=case.object_mask, **solve_kwargs(method, case.pixel_size))
 normals = res.normals
 out["solve_timings"] = {k: round(v, 3) for k, v in res.timings.items()}
 out["iterations"] = res.iterations
