@@ -23,7 +23,7 @@ from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "KINDS"]
+           "forensic", "KINDS"]
 
 #: image kinds -> render options
 KINDS = {"Di": dict(model="lambert", shadows=False), "Hi-Sh": dict(model="ts", shadows=True)}
@@ -386,3 +386,11 @@ def table_5_6(df, *, weight="eZsourceZsurface", count=16):
     t["Mean"] = t.mean(axis=1)
     t.index = ["Binary" if b else "Weighted" for b in t.index]
     return t.reindex([i for i in ("Weighted", "Binary") if i in t.index])
+
+
+def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
+    """Chapter 7 forensic study: one part (method, truth, timing, panels) of experiment
+    chapter7 (:func:`psbench.forensic.study.run`; payload json)."""
+    from .forensic.study import run
+
+    return run(part, label, size=size, seed=seed, study=study)
