@@ -38,7 +38,11 @@ NOTES = ("Simulated cases (psbench.forensic.make_cartridge: procedural breech-fa
          "Th-Hi-Re-Sh (um)' converts the weighted masks' pixel parameters from the thesis's "
          "4.9 um pixel (identical to 'weighted Th-Hi-Re-Sh' at 2048). The thesis reports no "
          "numbers for Chapter 7: its claims are tested below. The identification is the "
-         "field's areal CCFmax, not the BALISTIKA system the thesis's examiners used.")
+         "field's areal CCFmax, not the BALISTIKA system the thesis's examiners used. The "
+         "firing-pin impression is a nearly rotation-symmetric crater: its registration "
+         "does not recover the gun's rotation even on true heights ('registered' ~0 %) and "
+         "its CCFmax mostly measures the crater's shape, so non-sister pairs score almost "
+         "as high as sisters there; the breech face is the comparison that identifies.")
 THESIS = {}
 GATED = True
 ID_PARTS = ("breech face", "firing pin")
