@@ -165,7 +165,7 @@ def _task(cfg):
     exc = row.pop("_exc", None)
     note = None
     if pics is not None and row["status"] == "ok":     # before the row: stored => pictures
-        note = _write_pictures(cfg, pics, row, kept, multi)
+        note = _write_pictures(cfg, pics, row, kept)
     path = write_row(root, row)
     print(f"{format_row(row)} | stored {path}", flush=True)
     if note:
@@ -219,13 +219,13 @@ def _pictures_present(pics):
     return O.present(pics)
 
 
-def _write_pictures(cfg, pics, row, kept, multi):
+def _write_pictures(cfg, pics, row, kept):
     """Write a run's pictures; returns the line saying where they went. Never fatal: a
     failure is one warning line and the row is stored all the same."""
     from . import outputs as O
     from .run import format_row
 
-    lvl = O.level(S.coerce_settings({"outputs": cfg.get("outputs")})["outputs"], multi)
+    lvl = O.level(S.coerce_settings({"outputs": cfg.get("outputs")})["outputs"])
     try:
         secs = O.write_run(pics, lvl=lvl, row=row, result=kept["result"],
                            scene=kept["scene"], line=format_row(row))

@@ -8,13 +8,13 @@ outputs to a folder of its own, built under a temporary name and renamed into pl
   ``<results_dir>/out/<sweep>/``; the sweep's summary and comparison sheet
   (:mod:`psbench.harness.sweep`, :mod:`psbench.harness.sheet`) go to ``DIR``.
 
-What is written is set by ``outputs=``: ``pictures`` (the PNGs of
+What is written is set by ``outputs=``: ``pictures`` (default: the PNGs of
 :func:`psbench.io.write_outputs`: input, normals, ground truth, NE map with colour bar,
-albedo, mask overlay, weights, shaded heights), ``all`` (pictures, the ``.npy`` arrays
-and the height meshes ``mesh.ply`` / ``mesh.obj``), ``none``; ``auto`` (default) is
-``all`` for a single run and ``pictures`` for the jobs of a sweep (a sweep of many runs
-would otherwise fill the disk with meshes). ``run.json`` in the folder describes the run
-(its printed row, parameters and figures); the comparison sheet reads it.
+albedo, mask overlay, weights and the shaded heights, which cost a small part of a run),
+``all`` (pictures, the ``.npy`` arrays and the height meshes ``mesh.ply`` / ``mesh.obj``,
+which cost more time than the pictures and ~35 MB at 512 x 512, so they are written when asked
+for), ``none``. ``run.json`` in the folder describes the run (its printed row, parameters
+and figures); the comparison sheet reads it.
 """
 from __future__ import annotations
 
@@ -30,19 +30,17 @@ from .._checks import PsbenchError
 __all__ = ["LEVELS", "MARKER", "level", "run_dir", "sweep_dir", "check_dir", "present",
            "write_run", "read_run_info"]
 
-LEVELS = ("auto", "all", "pictures", "none")
+LEVELS = ("pictures", "all", "none")
 #: the file that marks a folder as a psbench run's outputs
 MARKER = "run.json"
 _FIGURES = ("ne_mean", "ne_median", "ie_l2", "ie_rel", "qf_total", "t_total", "t_solve",
             "t_render", "n_images", "status", "error")
 
 
-def level(outputs, multi) -> str:
-    """The effective level: ``auto`` -> ``all`` (single run) or ``pictures`` (sweep job)."""
+def level(outputs) -> str:
+    """The checked ``outputs=`` value."""
     if outputs not in LEVELS:
         raise PsbenchError(f"outputs={outputs!r} is not known; valid choices: {', '.join(LEVELS)}")
-    if outputs == "auto":
-        return "pictures" if multi else "all"
     return outputs
 
 
@@ -59,7 +57,7 @@ def sweep_dir(*, out, root, sweep, cwd) -> Path:
 def run_dir(*, out, outputs, root, sweep, run_id, multi, cwd):
     """Folder of one run's outputs, or None with ``outputs=none``; checked with
     :func:`check_dir` (raises before any work when it holds foreign files)."""
-    if level(outputs, multi) == "none":
+    if level(outputs) == "none":
         return None
     if out and not multi:
         d = _base(out, cwd)

@@ -22,7 +22,7 @@ __all__ = ["build_sheet", "ROWS"]
 #: (file, row label) of the sheet's rows, top to bottom
 ROWS = (("input.png", "input"), ("truth.png", "ground truth"), ("normals.png", "normals"),
         ("ne_map.png", "NE map"))
-TILE = 240          # px: longer side of a tile
+TILE = (200, 320)   # px: longer side of a tile, smallest and largest (few columns: larger)
 PER_BAND = 6        # columns per band; more runs wrap into further bands
 
 
@@ -34,7 +34,8 @@ def _load(path):
 
 
 def _tile(img, box, size):
-    """Crop to ``box`` and fit into ``size`` x ``size`` on white."""
+    """Crop to ``box`` and fit into ``size`` x ``size``, padded with the picture's own
+    background (its corner colour: black for normal maps, white for NE maps)."""
     from ..io._common import cv2
     from ..io._pictures import _canvas
 
@@ -43,7 +44,7 @@ def _tile(img, box, size):
     s = size / max(h, w)
     nh, nw = max(1, round(h * s)), max(1, round(w * s))
     a = cv2().resize(a, (nw, nh), interpolation=cv2().INTER_AREA if s < 1 else cv2().INTER_LINEAR)
-    out = _canvas(size, size)
+    out = _canvas(size, size, tuple(int(v) for v in a[0, 0]))
     y, x = (size - nh) // 2, (size - nw) // 2
     out[y:y + nh, x:x + nw] = a
     return out
@@ -59,7 +60,7 @@ def _label(row, axes):
     """Column heading: the swept parameters and the mean NE."""
     def v(x):
         return Path(x).name if isinstance(x, str) and x.startswith("/") else x
-    lines = [f"{a}={v(row.get(a))}" for a in axes]
+    lines = [f"{a}={v(row.get(a))}" for a in axes if row.get(a) is not None]
     ne = row.get("ne_mean")
     ok = row.get("status") == "ok"
     if not ok:
@@ -71,10 +72,12 @@ def _label(row, axes):
     return "\n".join(str(s) for s in lines)
 
 
-def _sheet_png(cols, axes, size=TILE):
+def _sheet_png(cols, axes, size=None):
     """The sheet picture: ``cols`` = [(row dict, run folder)]."""
     from ..io import _pictures as P
 
+    if size is None:       # about 1000 px of tiles per band
+        size = int(np.clip(1000 // min(len(cols), PER_BAND), *TILE))
     have = {f: any((d / f).is_file() for _, d in cols) for f, _ in ROWS}
     rows = [(f, lab) for f, lab in ROWS if have[f] or f == "input.png"]
     bands = []

@@ -121,7 +121,7 @@ def summary_table(rows, axes=None) -> str:
     width = [max(len(h), *(len(b[j]) for b in body)) if body else len(h)
              for j, h in enumerate(head)]
     fmt = lambda cells: "  ".join(c.ljust(w) if j <= len(axes) or j == len(head) - 1  # noqa: E731
-                                  else c.rjust(w) for j, (c, w) in enumerate(zip(cells, width)))
+                                  else c.rjust(w) for j, (c, w) in enumerate(zip(cells, width))).rstrip()
     return "\n".join([fmt(head), fmt(["-" * w for w in width])] + [fmt(b) for b in body])
 
 

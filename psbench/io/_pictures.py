@@ -186,7 +186,7 @@ def hstack(*pics, gap=8):
     return out
 
 
-def montage(tiles, *, ncols=None, labels=None, size=14, gap=4, max_width=1600):
+def montage(tiles, *, ncols=None, labels=None, size=14, gap=4, max_width=1200):
     """Tiles (equal shapes) in a grid, each under its label; scaled down so the grid
     is at most ``max_width`` px wide."""
     cv2 = _cv2()
@@ -215,8 +215,12 @@ def write_png(path, rgb):
     """Write an 8-bit RGB (or grey) picture as PNG atomically; returns the path."""
     cv2 = _cv2()
     a = np.ascontiguousarray(rgb)
+    if a.ndim == 3 and (a[..., 0] == a[..., 1]).all() and (a[..., 0] == a[..., 2]).all():
+        a = np.ascontiguousarray(a[..., 0])        # grey: one channel, a third of the work
+    # fast settings: pictures are written on every run (run-length strategy, level 1)
     ok, buf = cv2.imencode(".png", a[..., ::-1] if a.ndim == 3 else a,
-                           [cv2.IMWRITE_PNG_COMPRESSION, 1])
+                           [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY,
+                            cv2.IMWRITE_PNG_STRATEGY_RLE])
     if not ok:  # pragma: no cover - OpenCV refuses only unsupported arrays
         raise RuntimeError(f"could not encode {path}")
     return atomic_write(path, buf.tobytes(), fsync=False)
@@ -231,38 +235,52 @@ def error_picture(ne, object_mask=None, *, vmax=NE_MAX, title=None):
     return titled(pic, title) if title else pic
 
 
-def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1600):
+def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1200):
     """Each image in grey with its excluded observations coloured, in a grid.
 
     Without ``truth``: excluded (``valid`` False) red. With ``truth`` ((k, H, W) bool,
     true highlights and shadows): TP green (excluded, truly corrupted), FP blue
-    (excluded, clean), FN red (used, truly corrupted); legend below.
+    (excluded, clean), FN red (used, truly corrupted); legend below. Tiles are cropped to
+    the object and shrunk before they are coloured (a pixel is coloured when at least half
+    of the pixels it covers are).
     """
+    cv2 = _cv2()
     imgs = np.asarray(images, dtype=np.float32)
     bad = ~np.asarray(valid, bool)
     k = imgs.shape[0]
     m = np.ones(imgs.shape[1:], bool) if object_mask is None else np.asarray(object_mask, bool)
+    used = float((~bad)[:, m].mean()) if m.any() else 1.0
     # one scale for every image: intensities stay comparable across lights
     top = float(np.percentile(imgs[:, m], 99.0)) if m.any() else 1.0
     box = object_box(m)            # tiles cropped to the object: more of it per pixel
-    imgs, bad, m = imgs[(slice(None),) + box], bad[(slice(None),) + box], m[box]
-    if truth is not None:
-        truth = np.asarray(truth, bool)[(slice(None),) + box]
-    valid = ~bad
+    sl = (slice(None),) + box
+    imgs, bad, m = imgs[sl], bad[sl] & m[box], m[box]
+    truth = None if truth is None else np.asarray(truth, bool)[sl] & m
+    ncols = max(1, min(int(np.ceil(np.sqrt(k * 1.6))), k))
+    h, w = m.shape
+    s = min(1.0, (max_width - 4 * (ncols - 1)) / (ncols * w))
+    size = (max(1, int(w * s)), max(1, int(h * s)))
+
+    def shrink(a):
+        a = np.ascontiguousarray(a, dtype=np.float32)
+        return a if s >= 1.0 else cv2.resize(a, size, interpolation=cv2.INTER_AREA)
+
+    mm = shrink(m) >= 0.5
     tiles = []
     for i in range(k):
-        g = np.repeat(_u8(np.where(m, imgs[i] / (top or 1.0), 0) * 0.85)[..., None], 3, -1)
-        f = bad[i] & m
+        g = np.repeat(_u8(np.where(mm, shrink(imgs[i]) / (top or 1.0), 0) * 0.85)[..., None],
+                      3, -1)
+        f = shrink(bad[i]) >= 0.5
         if truth is None:
             g[f] = (230, 30, 30)
         else:
-            t = np.asarray(truth[i], bool) & m
+            t = shrink(truth[i]) >= 0.5
             g[f & t] = (0, 200, 0)
             g[f & ~t] = (40, 90, 255)
             g[~f & t] = (230, 30, 30)
         tiles.append(g)
-    pic = montage(tiles, labels=[f"{i + 1}" for i in range(k)], max_width=max_width)
-    used = float(np.asarray(valid, bool)[:, m].mean()) if m.any() else 1.0
+    pic = montage(tiles, ncols=ncols, labels=[f"{i + 1}" for i in range(k)],
+                  max_width=max_width)
     if truth is None:
         note = f"red: observation excluded by the mask ({100 * (1 - used):.1f} % excluded)"
     else:
@@ -272,7 +290,7 @@ def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1600
 
 
 def weights_picture(weights, object_mask=None, *, title="weights", vmax=None,
-                    max_width=1600):
+                    max_width=1200):
     """(n, H, W) weights in viridis over [0, vmax] (default the 99th percentile over the
     object) with a colour bar, one tile per image or ring."""
     w = np.asarray(weights, dtype=np.float32)

@@ -17,7 +17,7 @@ from ._common import cv2 as _cv2
 __all__ = ["height_picture"]
 
 
-def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, max_side=440,
+def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, max_side=360,
                    exaggeration=1.0, light=(-0.45, 0.35, 0.82)):
     """Shaded oblique render of ``height`` (H, W) (pixel units, z up), (h, w, 3) uint8.
 

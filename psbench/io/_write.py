@@ -159,8 +159,9 @@ def encode_normals(normals, *, object_mask=None, code="field"):
     return rgb
 
 
-def _mesh(height, object_mask):
-    """Vertices (n, 3) float32 and triangles (m, 3) int32 of a height map (see write_ply)."""
+def _mesh(height, object_mask, quads=False):
+    """Vertices (n, 3) float32 and triangles (m, 3) int32 of a height map (see write_ply);
+    ``quads``: one (m, 4) quad (bl, br, tr, tl) per 2x2 block instead of two triangles."""
     h = np.asarray(height, dtype=np.float64)
     if h.ndim != 2:
         raise PsbenchError(f"height must have shape (H, W), got {h.shape}")
@@ -173,6 +174,8 @@ def _mesh(height, object_mask):
     a, b = idx[:-1, :-1], idx[:-1, 1:]   # top-left, top-right
     cc, d = idx[1:, :-1], idx[1:, 1:]    # bottom-left, bottom-right
     quad = (a >= 0) & (b >= 0) & (cc >= 0) & (d >= 0)
+    if quads:
+        return verts, np.stack([cc[quad], d[quad], b[quad], a[quad]], axis=1).astype(np.int32)
     # y is up, so the bottom row is lower: CCW from +z is (bl, br, tr) and (bl, tr, tl)
     t1 = np.stack([cc[quad], d[quad], b[quad]], axis=1)
     t2 = np.stack([cc[quad], b[quad], a[quad]], axis=1)
@@ -212,9 +215,10 @@ def write_ply(path, height, *, object_mask=None, binary=True):
 
 @renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
 def write_obj(path, height, *, object_mask=None):
-    """Write a height map as a Wavefront OBJ triangle mesh (text; the same vertices and
-    faces as :func:`write_ply`, faces 1-based). Returns ``(n_vertices, n_faces)``."""
-    verts, faces = _mesh(height, object_mask)
+    """Write a height map as a Wavefront OBJ mesh (text; the vertices of :func:`write_ply`,
+    one quad per 2x2 pixel block whose corners are in the object, counter-clockwise seen
+    from +z, 1-based). Returns ``(n_vertices, n_faces)``."""
+    verts, faces = _mesh(height, object_mask, quads=True)
 
     def write(f):
         f.write(b"# psbench height map mesh (pixel units; x right, y up, z height)\n")
@@ -224,7 +228,7 @@ def write_obj(path, height, *, object_mask=None):
             f.write((("v %.4f %.4f %.4f\n" * len(v)) % tuple(v.ravel())).encode("ascii"))
         for lo in range(0, len(faces), 1 << 16):
             t = faces[lo:lo + (1 << 16)] + 1
-            f.write((("f %d %d %d\n" * len(t)) % tuple(t.ravel().tolist())).encode("ascii"))
+            f.write((("f %d %d %d %d\n" * len(t)) % tuple(t.ravel().tolist())).encode("ascii"))
 
     atomic_write(path, write, fsync=False)
     return len(verts), len(faces)

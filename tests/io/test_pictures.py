@@ -85,14 +85,15 @@ def test_meshes_ply_and_obj_agree(tmp_path):
     m[0, 0] = False
     nv, nf = io.write_obj(tmp_path / "m.obj", h, object_mask=m)
     nv2, nf2 = io.write_ply(tmp_path / "m.ply", h, object_mask=m, binary=False)
-    assert (nv, nf) == (nv2, nf2) == (11, 10)
+    assert nv == nv2 == 11 and (nf, nf2) == (5, 10)       # OBJ: one quad per two triangles
     lines = (tmp_path / "m.obj").read_text().splitlines()
     v = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("v ")])
     f = np.array([[int(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("f ")])
-    assert v.shape == (11, 3) and f.shape == (10, 3) and f.min() == 1 and f.max() == 11
+    assert v.shape == (11, 3) and f.shape == (5, 4) and f.min() == 1 and f.max() == 11
     assert np.allclose(v[0], [-0.5, 1.0, 1.0])
-    a, b, c = (v[f[:, j] - 1] for j in range(3))
-    assert (np.cross(b - a, c - a)[:, 2] > 0).all()     # counter-clockwise seen from +z
+    for i, j, k in ((0, 1, 2), (0, 2, 3)):            # both halves counter-clockwise from +z
+        a, b, c = v[f[:, i] - 1], v[f[:, j] - 1], v[f[:, k] - 1]
+        assert (np.cross(b - a, c - a)[:, 2] > 0).all()
 
 
 def test_encode_normals_codes():
