@@ -144,7 +144,7 @@ def _task(cfg):
     validate(params)
     sweep = st["sweep"]
     rid = run_id(params)
-    pics = _pictures_dir(cfg, root, sweep, rid, multi)
+    pics = _pictures_dir(cfg, root, sweep, rid, multi) if params["kind"] == "solve" else None
     done = {"run_id": rid, "root": str(root), "sweep": sweep,
             "out": None if pics is None else str(pics)}
     stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
@@ -164,7 +164,7 @@ def _task(cfg):
         row = execute(params, sweep=sweep, config={"params": params, "cfg": full}, keep=kept)
     exc = row.pop("_exc", None)
     note = None
-    if pics is not None and row["status"] == "ok":     # before the row: stored => pictures
+    if pics is not None and "result" in kept:          # before the row: stored => pictures
         note = _write_pictures(cfg, pics, row, kept)
     path = write_row(root, row)
     print(f"{format_row(row)} | stored {path}", flush=True)

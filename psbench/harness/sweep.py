@@ -26,7 +26,7 @@ try:  # Hydra is a dependency; the class stays importable without it for the hel
 except ImportError:  # pragma: no cover
     Callback = object
 
-__all__ = ["SweepCallback", "count_jobs", "summary_table", "rank"]
+__all__ = ["SweepCallback", "count_jobs", "summary_table", "rank", "varying", "cleanup"]
 
 
 def count_jobs(config) -> int | None:
@@ -139,6 +139,7 @@ class SweepCallback(Callback):
         os.write(fd, (json.dumps(head) + "\n").encode())
         os.close(fd)
         self.path = name
+        _PENDING.add(name)
         atexit.register(_remove, name)       # also when the sweep is interrupted
 
     def on_multirun_end(self, config, **kwargs):
@@ -182,11 +183,22 @@ class SweepCallback(Callback):
               f"{_hms(el)} | ETA {_hms(eta)}", file=sys.stderr, flush=True)
 
 
+_PENDING: set = set()
+
+
 def _remove(path):
+    _PENDING.discard(path)
     try:
         os.unlink(path)
     except OSError:
         pass
+
+
+def cleanup():
+    """Remove the progress files of sweeps of this process (for interrupt handlers that
+    leave without running ``atexit``)."""
+    for p in list(_PENDING):
+        _remove(p)
 
 
 def _finish(head, recs, config):

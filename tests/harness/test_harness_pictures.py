@@ -119,6 +119,14 @@ def test_single_run_pictures_out_and_outputs(tmp_path):
     # outputs=none: no pictures
     r = psbench("size=40", "surface=spheres", "outputs=none", cwd=tmp_path)
     assert r.returncode == 0 and "pictures (" not in r.stdout
+    # stored without pictures: not redone, says how to make them
+    r = psbench("size=40", "surface=spheres", cwd=tmp_path)
+    assert r.returncode == 0 and "skipped (stored)" in r.stdout
+    assert "no pictures in" in r.stdout and "rerun=true" in r.stdout
+    # runs that solve nothing have no pictures and no note
+    r = psbench("kind=cond", "lights=30x8+60x8", cwd=tmp_path)
+    assert r.returncode == 0 and "cond=" in r.stdout
+    assert "pictures (" not in r.stdout and "no pictures" not in r.stdout
 
 
 # ----------------------------------------------------------------------------- sweeps
@@ -210,3 +218,18 @@ def test_data_folder_pictures_read_and_far_lights(tmp_path, diligent):
     assert r.returncode == 0, r.stderr
     assert r.stdout.count("lights: all 96 read") == 2 and "2/2 done" in r.stderr
     _check_sheet(tmp_path / "results" / "out" / "cat", 2)
+
+
+def test_rank_and_summary_table():
+    from psbench.harness.sweep import rank, summary_table, varying
+
+    rows = [dict(run_id="a", mask="Th", method="ps", ne_mean=9.2, ie_rel=10.0, status="ok"),
+            dict(run_id="b", mask="RA", method="ps", ne_mean=None, ie_rel=1.0, status="failed"),
+            dict(run_id="c", mask="None", method="ps", ne_mean=8.1, ie_rel=5.0, status="ok"),
+            dict(run_id="d", mask="NL", method="ps", ne_mean=None, ie_rel=3.0, status="ok")]
+    assert [r["run_id"] for r in rank(rows)] == ["c", "a", "d", "b"]   # NE, then IE, failed
+    assert varying(rows) == ["mask"]
+    lines = summary_table(rows).splitlines()
+    assert lines[0].split()[:3] == ["#", "mask", "NE"]
+    assert [ln.split()[1] for ln in lines[2:]] == ["None", "Th", "NL", "RA"]
+    assert lines[-1].rstrip().endswith("failed") and lines[-1] == lines[-1].rstrip()
