@@ -161,7 +161,8 @@ def build_sheet(runs, out_dir, *, axes=None, title="psbench comparison", stem="c
     for i, r in enumerate(rank([r for r, _ in runs]), 1):
         d = where[id(r)]
         info = read_run_info(d) or {}
-        f = lambda k: "-" if r.get(k) is None or r.get(k) != r.get(k) else f"{r[k]:.2f}"  # noqa: E731
+        def f(k, r=r):
+            return "-" if r.get(k) is None or r.get(k) != r.get(k) else f"{r[k]:.2f}"
         table.append({"#": str(i), **{a: str(_short(r.get(a))) for a in axes},
                       "NE mean (deg)": f("ne_mean"), "NE median (deg)": f("ne_median"),
                       "IE (% of range)": f("ie_rel"), "time (s)": f("t_total"),

@@ -113,15 +113,20 @@ def summary_table(rows, axes=None) -> str:
     axes = axes or varying(rows)
     head = ["#", *axes, "NE mean (deg)", "NE median (deg)", "IE (% of range)", "time (s)",
             "status"]
-    body = []
-    for i, r in enumerate(rows, 1):
-        f = lambda k, spec=".2f": "-" if _num(r.get(k)) is None else format(_num(r.get(k)), spec)  # noqa: E731
-        body.append([str(i), *(_cell(r.get(a)) for a in axes), f("ne_mean"), f("ne_median"),
-                     f("ie_rel"), f("t_total"), str(r.get("status") or "-")])
+    def num(r, k):
+        v = _num(r.get(k))
+        return "-" if v is None else f"{v:.2f}"
+
+    body = [[str(i), *(_cell(r.get(a)) for a in axes), *(num(r, k) for k in
+             ("ne_mean", "ne_median", "ie_rel", "t_total")), str(r.get("status") or "-")]
+            for i, r in enumerate(rows, 1)]
     width = [max(len(h), *(len(b[j]) for b in body)) if body else len(h)
              for j, h in enumerate(head)]
-    fmt = lambda cells: "  ".join(c.ljust(w) if j <= len(axes) or j == len(head) - 1  # noqa: E731
-                                  else c.rjust(w) for j, (c, w) in enumerate(zip(cells, width))).rstrip()
+    left = set(range(len(axes) + 1)) | {len(head) - 1}      # text columns; numbers right
+
+    def fmt(cells):
+        return "  ".join(c.ljust(w) if j in left else c.rjust(w)
+                         for j, (c, w) in enumerate(zip(cells, width))).rstrip()
     return "\n".join([fmt(head), fmt(["-" * w for w in width])] + [fmt(b) for b in body])
 
 

@@ -5,7 +5,8 @@ axis by ``azimuth`` and seen from ``elevation`` degrees above the horizon under 
 orthographic camera. Every image column of the turned map projects to one screen column,
 so the surface is drawn column by column as vertical spans between neighbouring rows
 (the "voxel space" scheme); a span is hidden where a nearer point of its column projects
-higher (the running maximum from the front), which is exact for a height map. Colour is the height (viridis) times Lambert shading of the surface's own normals.
+higher (the running maximum from the front), which is exact for a height map. Colour is
+the height (viridis) times Lambert shading of the surface's own normals.
 Cost: a few tens of milliseconds at the default size.
 """
 from __future__ import annotations
