@@ -6,10 +6,13 @@ small. Plots are made elsewhere from the returned frames.
 
 Image kinds used throughout (thesis Figs. 4.3, 4.4, 4.7):
 
-* ``"Di"`` (diffuse): ``model="lambert", shadows=False`` -- no highlights and no cast
-  shadows. Self-shadowed points (s . n <= 0) are still 0 because light cannot be
-  negative; with the thesis's sombreros and zeniths above 90 - max surface zenith a
-  few observations are therefore still attached shadows.
+* ``"Di"`` (diffuse): ``model="lambert", shadows="none"`` -- images "without highlight
+  and shadow" (thesis lines ~824, ~830): plain unclamped Lambert I = rho_d s . n, which
+  is negative where s . n < 0, so least squares is exact up to noise (the premise of the
+  optimal-lighting analyses of Section 2.4). Not a physical camera image.
+* ``"Di-clamped"``: ``model="lambert", shadows="self"`` -- Lambert without cast shadows
+  but with attached (self) shadows clamped to 0 (psbench's earlier "Di"); at zeniths
+  above 90 - max surface zenith some observations are attached shadows.
 * ``"Hi-Sh"``: ``model="ts", shadows=True`` (Torrance-Sparrow highlights, self and cast
   shadows), the thesis's Table 5.1 parameters (rho_d = rho_s = 1, m = 2).
 
@@ -26,7 +29,9 @@ __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "KINDS"]
 
 #: image kinds -> render options
-KINDS = {"Di": dict(model="lambert", shadows=False), "Hi-Sh": dict(model="ts", shadows=True)}
+KINDS = {"Di": dict(model="lambert", shadows="none"),
+         "Di-clamped": dict(model="lambert", shadows="self"),
+         "Hi-Sh": dict(model="ts", shadows=True)}
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 
@@ -99,7 +104,7 @@ def ne_vs_surface_zenith(surface="sombrero2", lights=("30x8", "45x8", "60x8"), *
     lights : str, Layout or sequence of them
         One curve per layout (default: single rings at 30, 45, 60 degrees, 8 lights).
     size : int
-    kind : {"Hi-Sh", "Di"}
+    kind : {"Hi-Sh", "Di", "Di-clamped"}
     noise : float
     seed : int
     mask : str
@@ -320,7 +325,7 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
     seed : int
     z_single : float
     zeniths : (float, float)
-    kind : {"Hi-Sh", "Di"}
+    kind : {"Hi-Sh", "Di", "Di-clamped"}
 
     Returns
     -------
