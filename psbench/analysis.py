@@ -26,7 +26,7 @@ from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "KINDS"]
+           "mask_scores", "highlight_truth_options", "KINDS", "TRUTHS"]
 
 #: image kinds -> render options
 KINDS = {"Di": dict(model="lambert", shadows="none"),
@@ -34,6 +34,10 @@ KINDS = {"Di": dict(model="lambert", shadows="none"),
          "Hi-Sh": dict(model="ts", shadows=True)}
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
+#: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
+#: :func:`highlight_truth_options`): psbench's default reflection cone of 12 deg, the
+#: earlier range cut-off 0.1 and the range cut-off 0.5
+TRUTHS = ("cone12", "range0.1", "range0.5")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -391,3 +395,101 @@ def table_5_6(df, *, weight="eZsourceZsurface", count=16):
     t["Mean"] = t.mean(axis=1)
     t.index = ["Binary" if b else "Weighted" for b in t.index]
     return t.reindex([i for i in ("Weighted", "Binary") if i in t.index])
+
+
+# ----------------------------------------------------------------------------- Tables 5.2 / 5.3
+def highlight_truth_options(label):
+    """Render options of a highlight ground-truth label: ``"cone<t>"`` (reflection cone,
+    half-angle t degrees) or ``"range<f>"`` (specular term above f x the image range),
+    e.g. ``"cone12"`` -> ``{"highlight": "cone", "highlight_angle": 12.0}``."""
+    import re
+
+    m = re.fullmatch(r"(cone|range)(\d+(?:\.\d*)?)", str(label))
+    if not m:
+        raise PsbenchError(f"highlight truth {label!r} is not known; expected 'cone<degrees>' "
+                           "or 'range<fraction>', e.g. cone12, range0.5")
+    v = float(m.group(2))
+    key = "highlight_angle" if m.group(1) == "cone" else "highlight_fraction"
+    return {"highlight": m.group(1), key: v}
+
+
+def mask_scores(surface="sombrero2", lights="45x8", *, cases=None, mask="Th", thresholds=None,
+                weighted=False, th_scope="image", th_scopes=(), model="ts", shadows=True,
+                noise=0.05, size=128, seed=0, truths=TRUTHS, render_options=None):
+    """Render one scene, solve it with several masks (or thresholds) and score each: NE,
+    solve time and the quality factor (Eq. 2.32) under several highlight ground-truth
+    definitions (the thesis does not define it; Table 5.2 tunes on QF).
+
+    Parameters
+    ----------
+    surface : str or Surface
+    lights : str or Layout
+    cases : sequence of dict, optional
+        One solve each: ``{"mask": str, "thresholds": dict, "weighted": bool, "th_scope":
+        str}`` (missing keys: the arguments below). Default: one case from ``mask``,
+        ``thresholds``, ``weighted``, ``th_scope``.
+    mask, thresholds, weighted, th_scope
+        Defaults of the cases (as :func:`psbench.solve`).
+    th_scopes : sequence of str
+        Further Th range scopes: every case whose mask contains Th is solved once more
+        with each (e.g. ``("object", "robust", "pixel")``).
+    model, shadows, noise, size, seed
+        The scene (as :func:`psbench.render.render`; ``seed`` also seeds RA).
+    truths : sequence of str
+        Highlight ground-truth labels (:func:`highlight_truth_options`); the first is
+        the one the scene is rendered with (the images do not depend on it).
+    render_options : dict, optional
+        Further keyword options of :func:`psbench.render.render` (e.g. ``{"m": 4}``, the
+        Torrance-Sparrow lobe width).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case and truth: ``case, mask, thresholds`` (json), ``weighted,
+        th_scope, truth, n_images, ne_mean, ne_median, t_solve, qf_hi, qf_sh, qf_total``.
+    """
+    import json
+    import time
+
+    import pandas as pd
+    from .lights import layout
+    from .metrics import normal_error_stats, quality_factor
+    from .render import render
+
+    truths = [str(t) for t in _seq(truths)]
+    opts = [highlight_truth_options(t) for t in truths]
+    if not truths:
+        raise PsbenchError("truths must name at least one highlight ground truth")
+    base = dict(mask=mask, thresholds=thresholds or {}, weighted=weighted, th_scope=th_scope)
+    cases = [dict(base)] if cases is None else [{**base, **dict(c)} for c in _seq(cases)]
+    cases += [{**c, "th_scope": str(sc)} for sc in _seq(th_scopes) for c in list(cases)
+              if "Th" in str(c["mask"]).split("-") and str(sc) != c["th_scope"]]
+    ro = dict(render_options or {})
+    bad = sorted(set(ro) & {"model", "shadows", "noise", "seed", "highlight",
+                            "highlight_angle", "highlight_fraction"})
+    if bad:
+        raise PsbenchError(f"render_options must not set {bad}: they are arguments of "
+                           "mask_scores (truths for the highlight ground truth)")
+    surf = _surface(surface, size)
+    lay = layout(lights)
+    sc = render(surf, lay, model=model, shadows=shadows, noise=noise, seed=seed, **opts[0], **ro)
+    gts = [sc.highlight] + [sc.highlight_truth(**o) for o in opts[1:]]
+    obj = surf.object_mask
+    rows = []
+    for i, c in enumerate(cases):
+        t0 = time.perf_counter()
+        res = _ps(sc.images, lay, mask=c["mask"], object_mask=obj, seed=seed,
+                  thresholds=c["thresholds"] or None, weighted=bool(c["weighted"]),
+                  th_scope=c["th_scope"])
+        t = time.perf_counter() - t0
+        st = normal_error_stats(res.normals, surf.normals, object_mask=obj)
+        flagged = ~np.asarray(res.valid, dtype=bool)
+        for label, gt in zip(truths, gts):
+            qf = quality_factor(flagged, {"highlight": gt, "self_shadow": sc.self_shadow,
+                                          "cast_shadow": sc.cast_shadow}, object_mask=obj)
+            rows.append(dict(case=i, mask=c["mask"], thresholds=json.dumps(
+                c["thresholds"] or {}, sort_keys=True), weighted=bool(c["weighted"]),
+                th_scope=c["th_scope"], truth=label, n_images=lay.k,
+                ne_mean=float(st["mean"]), ne_median=float(st["median"]), t_solve=t,
+                qf_hi=float(qf["hi"]), qf_sh=float(qf["sh"]), qf_total=float(qf["total"])))
+    return pd.DataFrame(rows)

@@ -2,10 +2,12 @@
 and fails (or stays undecided) on a counter-example."""
 from __future__ import annotations
 
+import json
+
 import pandas as pd
 import pytest
 
-from psbench.experiments import fig4_4, table5_3, table5_4, table5_5, table5_6
+from psbench.experiments import fig4_4, table5_2, table5_3, table5_4, table5_5, table5_6
 from psbench.report import verdicts as V
 from psbench.report.aggregates import long_frame
 
@@ -159,3 +161,42 @@ def test_fig4_4_optimum_rule():
     assert fig4_4.verdicts(agg({**base, 50: 3.18}))[0].status == V.INCONCLUSIVE
     # 35 deg clearly better: refuted
     assert fig4_4.verdicts(agg({**base, 35: 2.9}))[0].status == V.NOT_SUPPORTED
+
+
+def _t52_rows(optima):
+    """table5_2 rows (mask_scores payloads) whose QF peaks at ``optima[truth][name][n]``."""
+    rows = []
+    sweep = {"k_low": [0.02, 0.04, 0.06, 0.08], "k_Hi": [0.01, 0.03, 0.05, 0.06]}
+    for n in (4, 12):
+        for noise in (0.0, 0.2):
+            recs = []
+            for truth, by_name in optima.items():
+                for name, vals in sweep.items():
+                    peak = by_name[name][n]
+                    for v in vals:
+                        q = 1.0 - abs(v - peak)
+                        recs.append(dict(thresholds=json.dumps({name: v}), truth=truth,
+                                         ne_mean=5.0, qf_hi=q, qf_sh=q, qf_total=q))
+            pl = {k: [r[k] for r in recs] for k in recs[0]}
+            rows.append(dict(kind="analysis", surface="sombrero", lights=f"45x{n}",
+                             n_images=n, zenith=45.0, noise=noise, seed=0,
+                             payload=json.dumps(pl)))
+    return pd.DataFrame(rows)
+
+
+COUNT52 = "Tuned threshold values increase from 4 to 12 images (k_low, k_Hi)"
+
+
+def test_table5_2_holds_only_under_every_ground_truth():
+    table = {"k_low": {4: 0.02, 12: 0.08}, "k_Hi": {4: 0.03, 12: 0.06}}   # Table 5.2
+    flat = {"k_low": {4: 0.04, 12: 0.04}, "k_Hi": {4: 0.01, 12: 0.01}}
+    rows = _t52_rows({t: table for t in table5_2.TRUTHS})
+    v = _by_claim(table5_2.verdicts(table5_2.aggregate(rows), rows))[COUNT52]
+    assert v.status == V.SUPPORTED and "range0.5: SUPPORTED" in v.detail
+    rows = _t52_rows({"cone12": table, "range0.1": flat, "range0.5": table})
+    assert _by_claim(table5_2.verdicts(table5_2.aggregate(rows), rows))[COUNT52].status == \
+        V.INCONCLUSIVE
+    # scored under the default truth only: the other definitions are missing -> undecided
+    rows = _t52_rows({"cone12": table})
+    v = _by_claim(table5_2.verdicts(table5_2.aggregate(rows), rows))[COUNT52]
+    assert v.status == V.INCONCLUSIVE and "range0.1: no data" in v.detail
