@@ -165,10 +165,10 @@ def verdicts(agg, rows=None):
     claim = "Th alone is within 1 deg of Th-Hi-Re-Sh"
     if "Th" in ne and "Th-Hi-Re-Sh" in ne:
         d = ne["Th"] - ne["Th-Hi-Re-Sh"]
-        sg = [1.0 - (v["Th"] - v["Th-Hi-Re-Sh"]) for v in sne.values()
+        sg = [1.0 - abs(v["Th"] - v["Th-Hi-Re-Sh"]) for v in sne.values()
               if "Th" in v and "Th-Hi-Re-Sh" in v] if sne else None
-        # gap: how far the improvement stays below one degree
-        out.append(quoted(decide(claim, 1.0 - d, f"Th {num(ne['Th'])} - Th-Hi-Re-Sh "
+        # gap: how far the difference stays within one degree (either way)
+        out.append(quoted(decide(claim, 1.0 - abs(d), f"Th {num(ne['Th'])} - Th-Hi-Re-Sh "
                                  f"{num(ne['Th-Hi-Re-Sh'])} = {num(d)} deg (thesis 8.63 - 8.28 "
                                  f"= 0.35)", seed_gaps=sg), Q_LOWEST))
     else:
