@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Shader", "highlight_plane", "highlight_truth"]
+from ._checks import PsbenchError, choice
+
+__all__ = ["Shader", "highlight_plane", "highlight_rule", "highlight_truth"]
 
 
 class Shader:
@@ -184,3 +186,25 @@ def highlight_truth(shader, dark, drange, *, cos_t=None, fraction=None):
     finally:
         shader.want_half = want
     return out
+
+
+def highlight_rule(highlight, angle, fraction):
+    """(rule, angle or None, fraction or None) of render's ground-truth highlight options
+    (validated; defaults :data:`psbench.render.HIGHLIGHT_ANGLE` / ``HIGHLIGHT_FRACTION``)."""
+    from .render import HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, _nonneg, _positive
+    if highlight is None:
+        highlight = "range" if fraction is not None else "cone"
+    rule = choice(highlight, HIGHLIGHT_RULES, "highlight")
+    if rule == "cone":
+        if fraction is not None:
+            raise PsbenchError("highlight_fraction applies to highlight='range'; "
+                               "highlight='cone' takes highlight_angle")
+        a = HIGHLIGHT_ANGLE if angle is None else _positive(angle, "highlight_angle")
+        if a >= 90:
+            raise PsbenchError(f"highlight_angle must be in (0, 90) degrees, got {angle!r}")
+        return rule, float(a), None
+    if angle is not None:
+        raise PsbenchError("highlight_angle applies to highlight='cone'; "
+                           "highlight='range' takes highlight_fraction")
+    f = HIGHLIGHT_FRACTION if fraction is None else _nonneg(fraction, "highlight_fraction")
+    return rule, None, float(f)

@@ -27,7 +27,7 @@ import numpy as np
 from ._checks import PsbenchError, choice
 from ._deprecate import warn_renamed
 from .lights import Layout, layout
-from ._shading import Shader, highlight_plane, highlight_truth
+from ._shading import Shader, highlight_plane, highlight_rule as _highlight_rule, highlight_truth
 from .shadowmap import point_shadow_map, shadow_map
 
 __all__ = ["render", "Scene", "MODELS", "SHADOWS", "HIGHLIGHT_RULES", "HIGHLIGHT_ANGLE",
@@ -387,26 +387,6 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         _quantize(images, mask, quantize)
     return Scene(images, highlight, self_sh, cast_sh, surface, lay, model, float(noise), seed,
                  sigma, drange, shadows, quantize, h_fraction, rule, h_angle, shader)
-
-
-def _highlight_rule(highlight, angle, fraction):
-    """(rule, angle or None, fraction or None) of the ground-truth highlight options."""
-    if highlight is None:
-        highlight = "range" if fraction is not None else "cone"
-    rule = choice(highlight, HIGHLIGHT_RULES, "highlight")
-    if rule == "cone":
-        if fraction is not None:
-            raise PsbenchError("highlight_fraction applies to highlight='range'; "
-                               "highlight='cone' takes highlight_angle")
-        a = HIGHLIGHT_ANGLE if angle is None else _positive(angle, "highlight_angle")
-        if a >= 90:
-            raise PsbenchError(f"highlight_angle must be in (0, 90) degrees, got {angle!r}")
-        return rule, float(a), None
-    if angle is not None:
-        raise PsbenchError("highlight_angle applies to highlight='cone'; "
-                           "highlight='range' takes highlight_fraction")
-    f = HIGHLIGHT_FRACTION if fraction is None else _nonneg(fraction, "highlight_fraction")
-    return rule, None, float(f)
 
 
 def _quantize(images, mask, bits):
