@@ -26,7 +26,7 @@ from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "mask_scores", "highlight_truth_options", "KINDS", "TRUTHS"]
+           "mask_scores", "highlight_truth_options", "diffuse_counts", "KINDS", "TRUTHS"]
 
 #: image kinds -> render options
 KINDS = {"Di": dict(model="lambert", shadows="none"),
@@ -492,4 +492,45 @@ def mask_scores(surface="sombrero2", lights="45x8", *, cases=None, mask="Th", th
                 th_scope=c["th_scope"], truth=label, n_images=lay.k,
                 ne_mean=float(st["mean"]), ne_median=float(st["median"]), t_solve=t,
                 qf_hi=float(qf["hi"]), qf_sh=float(qf["sh"]), qf_total=float(qf["total"])))
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Fig. 5.8
+def diffuse_counts(surface="sombrero2", lights=("30x4", "45x4", "60x4"), *, size=256,
+                   truths=("cone12",), model="ts"):
+    """How many diffuse observations (neither highlight nor shadow) each pixel has, per
+    layout and highlight ground truth (thesis Fig. 5.8: with 4 lights every sombrero and
+    sphere pixel has 2, 3 or 4). Noise-free renders with self and cast shadows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per layout and truth: ``surface, lights, truth, highlight`` (fraction of
+        lit observations that are highlights), ``shadow_only_lt2`` (fraction of pixels
+        with < 2 unshadowed observations), ``d0 .. d<k>`` (fraction of pixels with that
+        many diffuse observations) and ``nondiffuse`` (mean non-diffuse observations per
+        pixel).
+    """
+    import pandas as pd
+    from .lights import layout
+    from .render import render
+
+    surf = _surface(surface, size)
+    obj = np.asarray(surf.object_mask, dtype=bool)
+    rows = []
+    for spec in _seq(lights):
+        lay = layout(spec)
+        sc = render(surf, lay, model=model, noise=0.0)
+        sh = sc.shadow
+        lit = (~sh)[:, obj]
+        base = float((lit.sum(axis=0) < 2).mean())
+        for t in _seq(truths):
+            hi = sc.highlight_truth(**highlight_truth_options(t))
+            d = (~hi & ~sh).sum(axis=0)[obj]
+            row = dict(surface=_sname(surf, surface), lights=lay.name, truth=str(t),
+                       highlight=float(hi[:, obj].sum() / max(lit.sum(), 1)),
+                       shadow_only_lt2=base, nondiffuse=float(lay.k - d.mean()))
+            row.update({f"d{i}": float(c) for i, c in
+                        enumerate(np.bincount(d, minlength=lay.k + 1) / d.size)})
+            rows.append(row)
     return pd.DataFrame(rows)

@@ -106,3 +106,14 @@ def test_mask_scores_scores_every_case_under_every_truth():
         mask_scores("sombrero2", "45x8", truths=["peak"], size=32)
     with pytest.raises(ps.PsbenchError, match="render_options must not set"):
         mask_scores("sombrero2", "45x8", size=32, render_options={"noise": 0.1})
+
+
+def test_diffuse_counts_fig_5_8():
+    df = A.diffuse_counts("sombrero2", ("45x4",), size=64, truths=("cone12", "range0.1"))
+    assert list(df["truth"]) == ["cone12", "range0.1"]
+    d = df.set_index("truth")
+    cols = [f"d{i}" for i in range(5)]
+    assert np.allclose(d[cols].sum(axis=1), 1.0)
+    assert d.loc["cone12", "d0"] == 0 and d.loc["cone12", "d1"] == 0      # Fig. 5.8 holds
+    assert d.loc["range0.1", "d0"] + d.loc["range0.1", "d1"] > 0.2       # the old truth: not
+    assert d.loc["range0.1", "highlight"] > d.loc["cone12", "highlight"] > 0
