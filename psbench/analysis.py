@@ -306,7 +306,7 @@ def propose_zeniths(std_h=15.0, z_opt=45.0):
 def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5_5, *,
               weights=("None", "e", "eZsource", "eZsurface", "eZsourceZsurface"),
               binary=(False, True), oracle=False, size=128, noise=0.05, seed=0,
-              z_single=45.0, zeniths=(30.0, 60.0), kind="Hi-Sh"):
+              z_single=45.0, zeniths=(30.0, 60.0), kind="Hi-Sh", render_options=None):
     """The data of Tables 5.5 and 5.6: 1Z PS versus 2Z PS and WPS.
 
     For each surface and image count n: 1Z = ``{z_single}x{n}`` solved with plain PS;
@@ -330,6 +330,8 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
     z_single : float
     zeniths : (float, float)
     kind : {"Hi-Sh", "Di", "Di-clamped"}
+    render_options : dict, optional
+        Further keyword options of :func:`psbench.render.render` (e.g. ``{"m": 4}``).
 
     Returns
     -------
@@ -344,6 +346,7 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
     for w in _seq(weights):
         choice(w, WEIGHTS, "weights")
     z1, z2 = (float(z) for z in zeniths)
+    ro = dict(render_options or {})
     rows = []
     wlist = list(_seq(weights)) + (["oracle"] if oracle else [])
     for name in _seq(surfaces):
@@ -353,12 +356,12 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
             if n % 2 or n < 6:
                 raise PsbenchError(f"counts must be even and >= 6 (two rings of >= 3), got {n}")
             lay1 = layout(_ring(z_single, n))
-            sc1 = _render(surf, lay1, kind, noise, seed)
+            sc1 = _render(surf, lay1, kind, noise, seed, **ro)
             r1 = _ps(sc1.images, lay1, object_mask=surf.object_mask)
             rows.append(dict(surface=_sname(surf, name), count=n, source="1Z", lights=lay1.name,
                              weight="None", binary=False, ne=_ne(r1.normals, surf)))
             lay2 = layout(f"{_ring(z1, n // 2)}+{_ring(z2, n // 2)}")
-            sc2 = _render(surf, lay2, kind, noise, seed)
+            sc2 = _render(surf, lay2, kind, noise, seed, **ro)
             for w in wlist:
                 for b in (_seq(binary) if w != "None" else [False]):
                     r = wps(sc2.images, lay2, weight=w, binary=bool(b), object_mask=surf.object_mask,
