@@ -6,7 +6,8 @@ from psbench.report.aggregates import (long_frame, group_mean, fmt_num, model_la
 from psbench.report.verdicts import verdict, ok, num
 
 TITLE = "Fig. 4.7: NE vs source zenith per sombrero, Di vs Hi-Sh"
-AVERAGES = "NE per sombrero, 8 lights, 5 % noise, Di vs Hi-Sh, vs source zenith."
+AVERAGES = ("NE per sombrero, 8 lights, 5 % noise, Di (unclamped Lambert) vs Hi-Sh, vs "
+            "source zenith.")
 NOTES = ""
 GATED = False
 

@@ -12,7 +12,7 @@ from psbench.report.verdicts import (PCT_MARGIN, by_seed, decide, every, lowest,
 TITLE = "Table 5.5 / Fig. 5.22: 1Z vs 2Z, PS and WPS"
 AVERAGES = ("Mean NE over sombrero1-3, TS + shadows, 5 % noise; 1Z = 45 x n, 2Z = 30 x "
             "n/2 + 60 x n/2; rows '2Z/<weight>' are WPS (weighted fusion). Improvement ="
-            " (NE_1Z - NE) / NE_1Z in %. Part 'di': Lambert without shadows (Fig. 5.22).")
+            " (NE_1Z - NE) / NE_1Z in %. Part 'di': unclamped Lambert, no highlight and no shadow (Fig. 5.22).")
 NOTES = ("The thesis's improvement row for eZsurface (11.6-14.3 %) is inconsistent with "
          "its own NE row (9.65 -> 7.00 is 27.5 %); psbench computes improvements from "
          "its NE values.")
