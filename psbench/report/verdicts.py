@@ -273,7 +273,8 @@ def by_seed(rows, aggregate, *, shared=None) -> dict:
     if len(seeds) < 2:
         return {}
     cols = [c for c in _DESIGN if c in rows]
-    key = rows[cols].astype(str).agg("|".join, axis=1) if cols else pd.Series("", rows.index)
+    key = (rows[cols].map(lambda x: "" if not ok(x) and not isinstance(x, str) else str(x))
+           .agg("|".join, axis=1) if cols else pd.Series("", rows.index))
     sh = pd.Series(False, index=rows.index) if shared is None else \
         pd.Series(shared, index=rows.index).fillna(False).astype(bool)
     own = {k: set(key[(s == k) & ~sh]) | set(key[sh]) for k in seeds}

@@ -72,6 +72,7 @@ def test_by_seed_common_design_and_shared_rows():
         "seed": [0, 0, 0, 1, 1, 2, 2],
         "mask": ["A", "A", "B", "A", "B", "A", "B"],
         "noise": [0.0, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1],
+        "weight": [None, float("nan"), None, None, float("nan"), None, None],   # missing
         "ne_mean": [1.0, 2.0, 3.0, 2.2, 3.3, 1.8, 2.7]})
 
     def agg(r):
