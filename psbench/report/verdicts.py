@@ -37,7 +37,7 @@ import pandas as pd
 __all__ = ["SUPPORTED", "NOT_SUPPORTED", "INCONCLUSIVE", "NE_MARGIN", "QF_MARGIN", "Verdict",
            "verdict", "nodata", "lowest", "rank", "part_values", "slope", "ok", "num",
            "verdicts", "margin_for", "spread", "decide", "by_seed", "seed_part_values",
-           "quoted", "all_hold", "every", "ranked", "PCT_MARGIN"]
+           "quoted", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
 
 SUPPORTED, NOT_SUPPORTED, INCONCLUSIVE = "SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"
 NE_MARGIN = 0.1  # degrees: NE differences below this are not decided
@@ -235,6 +235,15 @@ def ranked(claim, values: dict, who: str, r: int, *, exact=True, margin=NE_MARGI
     return decide(claim, gap if math.isfinite(gap) else (1e9 if gap > 0 else -1e9), detail,
                   margin=margin, thesis_gap=th_gap if th_gap is None or math.isfinite(th_gap)
                   else None, seed_gaps=seed_gaps, unit=unit)
+
+
+def plateau(s: pd.Series, margin=NE_MARGIN) -> list:
+    """The index values of a curve within ``margin`` of its minimum: the optima that a
+    sampled curve cannot tell apart (e.g. source zeniths of a flat NE minimum)."""
+    s = s.dropna()
+    if s.empty:
+        return []
+    return sorted(float(x) for x in s.index[s <= s.min() + margin + _EPS])
 
 
 def every(claim, parts, quote="") -> Verdict:

@@ -200,3 +200,33 @@ def test_table5_2_holds_only_under_every_ground_truth():
     rows = _t52_rows({"cone12": table})
     v = _by_claim(table5_2.verdicts(table5_2.aggregate(rows), rows))[COUNT52]
     assert v.status == V.INCONCLUSIVE and "range0.1: no data" in v.detail
+
+
+def _f47(optima, flat=()):
+    """fig4_7 aggregate: V-shaped curves with their minimum at ``optima[(surface, kind)]``
+    (``flat``: curves whose two nearest zeniths are within the margin of the minimum)."""
+    from psbench.experiments import fig4_7
+
+    recs = []
+    for (s, lab), z0 in optima.items():
+        for z in (20, 30, 40, 45, 50, 60, 70, 80):
+            v = 5.0 + 0.05 * abs(z - z0)
+            if (s, lab) in flat and abs(z - z0) <= 5:
+                v = 5.0 + 0.01 * abs(z - z0)
+            recs.append((s, lab, str(z), v, 1))
+    return fig4_7.verdicts(long_frame(recs))
+
+
+def test_fig4_7_optimum_plateaus():
+    thesis = {("sombrero1", "Di"): 45, ("sombrero1", "Hi-Sh"): 70, ("sombrero2", "Di"): 45,
+              ("sombrero2", "Hi-Sh"): 60, ("sombrero3", "Di"): 45, ("sombrero3", "Hi-Sh"): 45}
+    vs = _by_claim(_f47(thesis))
+    assert all(v.status == V.SUPPORTED for v in vs.values()), {k: v.detail for k, v in vs.items()}
+    # sombrero3's Hi-Sh optimum below its Di optimum: "raise (or keep)" refuted
+    vs = _by_claim(_f47({**thesis, ("sombrero3", "Hi-Sh"): 30}))
+    assert vs["Highlights and shadows raise (or keep) the optimal Z_source"].status == \
+        V.NOT_SUPPORTED
+    # a flat Di minimum (40-50 within the margin) reaches the Hi-Sh optimum 40: kept
+    vs = _by_claim(_f47({**thesis, ("sombrero3", "Hi-Sh"): 40}, flat={("sombrero3", "Di")}))
+    raise_ = vs["Highlights and shadows raise (or keep) the optimal Z_source"]
+    assert raise_.status == V.SUPPORTED and "Di 40-50" in raise_.detail
