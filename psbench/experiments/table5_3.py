@@ -4,16 +4,19 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pandas as pd
 
 from psbench.report.aggregates import long_frame, mean, n_images
-from psbench.report.verdicts import (INCONCLUSIVE, NE_MARGIN, QF_MARGIN, by_seed, decide, lowest, nodata,
-                                     num, ok, part_values, quoted, seed_part_values, verdict)
+from psbench.report.verdicts import (INCONCLUSIVE, NE_MARGIN, QF_MARGIN, by_seed, decide,
+                                     lowest, nodata, num, ok, part_values, quoted,
+                                     seed_part_values, verdict)
 
 TITLE = "Table 5.3: overall results of all masks"
 AVERAGES = ("Mean over the five surfaces (semisphere on its ground plane, spheres, sombrero,"
             " mozart, penny), the 45-degree rings of 4, 6, 8 and 12 lights and noise 0/10/20 %"
             " (TS + shadows) for 'all light sources'; the 45x4 runs only for '4 light "
-            "sources'. The noisy 45x4 runs (and RA's) are averaged over seeds 0, 1, 2."
+            "sources'. The noisy 45x4 runs (and RA's) are averaged over seeds 0, 1, 2 first, so "
+            "every design point (surface, layout, noise, mask) weighs the same; n counts runs."
             " Time = t_solve (s) of psbench on this machine (the thesis: Matlab on a "
             "Core 2 Quad, 512^2).")
 NOTES = ("'All light sources' = 45-degree rings of 4, 6, 8 and 12 lights (the thesis "
@@ -70,14 +73,37 @@ def cell_kind(part, column):
     return {"ne": "ne", "time": "time"}.get(column, "qf")
 
 
+#: run parameters that make a design point (the runs of one point differ by seed only)
+_POINT = ("surface", "lights", "noise", "mask", "th_scope", "weighted", "model", "shadows",
+          "thresholds")
+
+
+def _seed_means(d, cols):
+    """One row per design point, its metrics averaged over the point's seeds (so a point
+    run with three seeds weighs as much as one run with one; ``_runs`` counts runs)."""
+    keys = [k for k in _POINT if k in d]
+    if "seed" not in d or not keys:
+        return d.assign(_runs=1)
+    num = [c for c in cols if c in d]
+    g = d[keys + num].copy()
+    for c in num:
+        g[c] = pd.to_numeric(g[c], errors="coerce")
+    for k in keys:   # NaN keys would drop their group
+        g[k] = g[k].astype(object).where(g[k].notna(), "")
+    out = g.groupby(keys, sort=False).agg(**{c: (c, "mean") for c in num},
+                                           _runs=(num[0], "size")).reset_index()
+    return out
+
+
 def _records(df):
     recs = []
     if df.empty:
         return recs
-    d = df.copy()
-    d["_n"] = n_images(d)
     cols = {"ne": "ne_mean", "time": "t_solve", "qf_hi": "qf_hi", "qf_sh": "qf_sh",
             "qf_total": "qf_total"}
+    d = df.copy()
+    d["_n"] = n_images(d)
+    d = _seed_means(d, list(cols.values()) + ["_n"])
     for part, masks, sel in (("all", ALL_MASKS, d),
                              ("four", FOUR_MASKS, d[d["_n"] == 4])):
         for mask in masks:
@@ -88,7 +114,8 @@ def _records(df):
                 if src in g:
                     v, n = mean(g[src])
                     if n:
-                        recs.append((part, mask, c, v, n))
+                        recs.append((part, mask, c, v, int(g.loc[g[src].notna(),
+                                                               "_runs"].sum())))
     return recs
 
 

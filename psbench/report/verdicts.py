@@ -137,8 +137,8 @@ def _seed_note(seed_gaps, unit):
     g = [x for x in seed_gaps if ok(x)]
     if len(g) < 2:
         return f"; {len(g)} seed: spread not measured"
-    return (f"; per seed {', '.join(num(x) for x in g)} (spread {num(spread(g))} {unit} over "
-            f"{len(g)} seeds)")
+    return (f"; per seed, on the runs every seed has: {', '.join(num(x) for x in g)} (spread "
+            f"{num(spread(g))} {unit} over {len(g)} seeds)")
 
 
 def decide(claim, gap, detail, *, margin=NE_MARGIN, thesis_gap=None, seed_gaps=None,

@@ -230,3 +230,16 @@ def test_fig4_7_optimum_plateaus():
     vs = _by_claim(_f47({**thesis, ("sombrero3", "Hi-Sh"): 40}, flat={("sombrero3", "Di")}))
     raise_ = vs["Highlights and shadows raise (or keep) the optimal Z_source"]
     assert raise_.status == V.SUPPORTED and "Di 40-50" in raise_.detail
+
+
+def test_table5_3_seeds_do_not_reweight_noise_levels():
+    # the noise-free run is seed-independent and runs once; the noisy one runs with three
+    # seeds: each design point must weigh the same in the mean
+    rows = [dict(seed=0, surface="s", lights="45x4", n_images=4, noise=0.0, mask="Th",
+                 ne_mean=2.0, t_solve=0.1, qf_hi=0.5, qf_sh=0.5, qf_total=0.5)]
+    rows += [dict(seed=k, surface="s", lights="45x4", n_images=4, noise=0.2, mask="Th",
+                  ne_mean=10.0 + k, t_solve=0.1, qf_hi=0.5, qf_sh=0.5, qf_total=0.5)
+             for k in (0, 1, 2)]
+    agg = table5_3.aggregate(pd.DataFrame(rows))
+    cell = agg[(agg["part"] == "four") & (agg["row"] == "Th") & (agg["column"] == "ne")]
+    assert cell["value"].iloc[0] == pytest.approx((2.0 + 11.0) / 2) and cell["n"].iloc[0] == 4
