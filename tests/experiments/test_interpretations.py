@@ -40,7 +40,8 @@ def rows():
                         args={"counts": [8, 16], "zeniths": [30, 60], **extra}))
     for kind in ("Di", "Di-clamped"):
         out.append(_run(analysis="ne_vs_source_zenith", surface="sombrero1", noise=0.05,
-                        args={"kinds": [kind], "counts": [8], "zeniths": [30, 45, 60]}))
+                        mask="None", args={"kinds": [kind], "counts": [8],
+                                           "zeniths": [30, 45, 60]}))
     for lights in ("30x8", "60x8"):
         for m in (2, 4):
             out.append(_run(analysis="ie_decomposition", surface="sombrero2", lights=lights,
@@ -111,6 +112,8 @@ def test_grid_lists_every_reading():
     from psbench.harness.grid import expand, load
 
     ps = expand(load("interpretations"), "ci")
+    # Fig. 4.4 is ordinary PS: the run parameter mask (default Th) reaches the function
+    assert {p["mask"] for p in ps if p["analysis"] == "ne_vs_source_zenith"} == {"None"}
     args = [p["args"] for p in ps]
     assert any((a.get("render_options") or {}).get("m") == 4 for a in args)
     assert any(a.get("th_scopes") == ["object", "robust", "pixel"] for a in args)
