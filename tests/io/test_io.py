@@ -215,7 +215,7 @@ class _Res:
 
 def test_write_outputs(tmp_path):
     from psbench.surfaces import make_surface
-    s = make_surface("semisphere", size=24)
+    s = make_surface("semisphere_disc", size=24)
     r = _Res()
     r.normals, r.albedo = s.normals, np.where(s.object_mask, 0.5, 0).astype(np.float32)
     r.height = s.height
