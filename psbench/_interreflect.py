@@ -422,7 +422,7 @@ def check_bounces(samples, positions, perspective, shadows):
 
 
 def render_bounces(surface, lights, *, bounces, samples, model, shadows, noise, seed, rho_d,
-                   rho_s, m, phong_m, quantize, highlight_fraction, shadow_bias):
+                   rho_s, m, phong_m, quantize, highlight_kw, shadow_bias):
     """:func:`psbench.render` with interreflections (arguments validated there).
 
     The direct scene is rendered noiseless, the secondary light is added, then noise
@@ -438,7 +438,7 @@ def render_bounces(surface, lights, *, bounces, samples, model, shadows, noise, 
 
     scene = render(surface, lights, model=model, shadows=shadows, noise=0.0, seed=seed,
                    rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m, quantize=None,
-                   highlight_fraction=highlight_fraction, shadow_bias=shadow_bias)
+                   shadow_bias=shadow_bias, **highlight_kw)
     height, mask, normals = _surface(surface)
     lay = scene.lights
     images = scene.images  # clean direct light, ours to modify

@@ -29,7 +29,7 @@ def test_plane_is_exact_and_datum():
 
 
 def test_smooth_surface_as_good_as_poisson():
-    s = ps.make_surface("semisphere", size=96)
+    s = ps.make_surface("semisphere_disc", size=96)
     h = bilateral_integrate(s.normals, s.object_mask)
     hp = ps.integrate(s.normals, object_mask=s.object_mask)
     inner = s.object_mask & (s.zenith < 60)
