@@ -336,12 +336,15 @@ def verdicts(agg, rows=None):
     if not tt or size != 2048:
         out.append(verdict(claims[10], None, f"no pipeline timed at 2048 x 2048 (timed at "
                                               f"{size})"))
+    elif not any(m in tt for m in THESIS_FOUR):
+        out.append(verdict(claims[10], None, "none of the thesis's four methods was timed"))
     else:
-        worst = max(tt, key=tt.get)
-        out.append(verdict(claims[10], tt[worst] <= 300.0, f"slowest: {worst} {num(tt[worst], 1)} "
-                           f"s wall on a shared machine; " + ", ".join(
-                               f"{k} {num(v, 1)} s" for k, v in tt.items())
-                           + " (criterion: <= 5 min)"))
+        four = {m: tt[m] for m in THESIS_FOUR if m in tt}        # the thesis's methods
+        worst = max(four, key=four.get)
+        out.append(verdict(claims[10], four[worst] <= 300.0, f"slowest of the thesis's "
+                           f"methods: {worst} {num(four[worst], 1)} s wall on a shared "
+                           f"machine (criterion: <= 5 min); all: " + ", ".join(
+                               f"{k} {num(v, 1)} s" for k, v in tt.items())))
     return out
 
 
