@@ -94,16 +94,16 @@ def section_timing(args):
     surf = ps.make_surface("sombrero2", size=args.size)
     lay = ps.layout("45x16")
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0, shadows=True)
-    pr = problem(scene.images, lay, surf.mask)
+    pr = problem(scene.images, lay, surf.object_mask)
     rows = []
     for name, fn in [
-            ("None (LS)", lambda: ps.solve(scene.images, lay, mask="None", object_mask=surf.mask)),
+            ("None (LS)", lambda: ps.solve(scene.images, lay, mask="None", object_mask=surf.object_mask)),
             ("Th-Hi-Re-Sh", lambda: ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh",
-                                              object_mask=surf.mask)),
+                                              object_mask=surf.object_mask)),
             ("tsfit", lambda: tsfit(pr))]:
         wall, cpu, res = timed(fn, args.runs)
         b = res.b
-        rows.append((name, wall, cpu, ne(b, surf.normals, surf.mask), res))
+        rows.append((name, wall, cpu, ne(b, surf.normals, surf.object_mask), res))
     base = rows[0][1]
     print("| method | median wall s | median CPU s | x None | NE deg |")
     print("|---|---|---|---|---|")
@@ -112,8 +112,8 @@ def section_timing(args):
     fit = rows[-1][4]
     st = {k: round(v, 3) for k, v in fit.info["timings"].items()}
     print(f"tsfit stages (last run, wall s): {st}; start={fit.info['start']}; "
-          f"mean LM iterations {fit.iterations[surf.mask].mean():.1f}; "
-          f"converged {100 * fit.converged[surf.mask].mean():.2f} %  [{load()}]")
+          f"mean LM iterations {fit.iterations[surf.object_mask].mean():.1f}; "
+          f"converged {100 * fit.converged[surf.object_mask].mean():.2f} %  [{load()}]")
 
 
 def section_diligent(args):

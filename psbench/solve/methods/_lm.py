@@ -354,6 +354,14 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
             np.maximum(ls, 1e-9, out=ls)
             itw[s] += a
             done = a & small
+            # a step below tol is taken without evaluating it (the Gauss-Newton model
+            # is exact to second order there): one evaluation less per pixel
+            take = done & ok
+            if take.any():
+                for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                                 (mw[s], cand[3])):
+                    if src is not dst:
+                        np.copyto(dst, src, where=take)
             convw[s] |= done
             active[s] &= ~done
         na = int(active.sum())
@@ -381,20 +389,34 @@ def chunks(P, k):
     return [slice(lo, min(P, lo + step)) for lo in range(0, P, step)]
 
 
-def init_rho(L, I, w, n, m, rs_max, rs=None):
+def init_rho(L, I, w, n, m, rs_max, rs=None, *, wII=None):
     """Least-squares (rho_d, rho_s) for fixed n and m (2x2 per pixel, clipped to the
     bounds): a start that already accounts for the highlight. With ``rs`` given
-    (p,), only rho_d is solved. Returns float32 (rd, rs), (p,) each."""
+    (p,), only rho_d is solved. Returns float32 (rd, rs), (p,) each; with ``wII``
+    (p,) = sum_i w_i I_i^2 given, also the cost at that (n, rd, rs, m) (float64,
+    from the same sums: one shading pass instead of two)."""
     P = n.shape[1]
     rd_out = np.empty(P, dtype=np.float32)
     rs_out = np.empty(P, dtype=np.float32)
+    cost = None if wII is None else np.empty(P)
     for s in chunks(P, I.shape[0]):
-        rd_out[s], rs_out[s] = _init_rho(L, I[:, s], w[:, s], n[:, s], m[s], rs_max[s],
-                                         None if rs is None else rs[s])
-    return rd_out, rs_out
+        out = _init_rho(L, I[:, s], w[:, s], n[:, s], m[s], rs_max[s],
+                        None if rs is None else rs[s], None if wII is None else wII[s])
+        rd_out[s], rs_out[s] = out[:2]
+        if cost is not None:
+            cost[s] = out[2]
+    return (rd_out, rs_out) if cost is None else (rd_out, rs_out, cost)
 
 
-def _init_rho(L, I, w, n, m, rs_max, rs):
+def weighted_energy(I, w):
+    """sum_i w_i I_i^2 per pixel, (p,) float64."""
+    out = np.empty(I.shape[1])
+    for s in chunks(I.shape[1], I.shape[0]):
+        out[s] = np.einsum("kp,kp->p", w[:, s] * I[:, s], I[:, s])
+    return out
+
+
+def _init_rho(L, I, w, n, m, rs_max, rs, wII=None):
     c, _, _, E = _shade(L, n, m)
     G = (c > 0) * L.mu_col
     c *= G
@@ -403,12 +425,15 @@ def _init_rho(L, I, w, n, m, rs_max, rs):
     a00 = np.einsum("kp,kp->p", wc, c).astype(np.float64)
     a01 = np.einsum("kp,kp->p", wc, E).astype(np.float64)
     r0 = np.einsum("kp,kp->p", wc, I).astype(np.float64)
+    a11 = r1 = None
+    if rs is None or wII is not None:
+        wE = w * E
+        a11 = np.einsum("kp,kp->p", wE, E).astype(np.float64)
+        r1 = np.einsum("kp,kp->p", wE, I).astype(np.float64)
     if rs is not None:
-        rd = (r0 - a01 * rs) / np.maximum(a00, 1e-30)
-        return np.maximum(rd, 0.0).astype(np.float32), np.asarray(rs, np.float32)
-    wE = w * E
-    a11 = np.einsum("kp,kp->p", wE, E).astype(np.float64)
-    r1 = np.einsum("kp,kp->p", wE, I).astype(np.float64)
+        rs = np.asarray(rs, np.float64)
+        rd = np.maximum((r0 - a01 * rs) / np.maximum(a00, 1e-30), 0.0)
+        return _with_cost(rd, rs, a00, a01, a11, r0, r1, wII)
     det = a00 * a11 - a01 * a01
     ok = det > 1e-9 * np.maximum(a00 * a11, 1e-30)
     sdet = np.where(ok, det, 1.0)
@@ -417,7 +442,17 @@ def _init_rho(L, I, w, n, m, rs_max, rs):
     neg = rs < 0  # a negative rho_s: rho_d alone
     rd = np.where(neg, r0 / np.maximum(a00, 1e-30), rd)
     rs = np.clip(rs, 0.0, rs_max)
-    return np.maximum(rd, 0.0).astype(np.float32), rs.astype(np.float32)
+    return _with_cost(np.maximum(rd, 0.0), rs, a00, a01, a11, r0, r1, wII)
+
+
+def _with_cost(rd, rs, a00, a01, a11, r0, r1, wII):
+    """(rd, rs) as float32, and the cost sum w (I - rd c - rs E)^2 from the sums."""
+    out = rd.astype(np.float32), rs.astype(np.float32)
+    if wII is None:
+        return out
+    rd, rs = out[0].astype(np.float64), out[1].astype(np.float64)
+    cost = wII - 2 * (rd * r0 + rs * r1) + rd * rd * a00 + 2 * rd * rs * a01 + rs * rs * a11
+    return out + (np.maximum(cost, 0.0),)
 
 
 def reduced(L, I, w, n, rd, rs, m, cols, glob):

@@ -82,21 +82,21 @@ def noise_comparison(surface="sombrero2", lights="45x16", noises=(0.0, 0.05, 0.1
         mask_rows = []
         for mk in masks:
             t = time.perf_counter()
-            res = solve(scene.images, lay, mask=mk, object_mask=surf.mask)
+            res = solve(scene.images, lay, mask=mk, object_mask=surf.object_mask)
             dt = time.perf_counter() - t
             mask_rows.append(dict(noise=noise, method=mk, seconds=dt,
-                                  ne=_ne(res.b, surf.normals, surf.mask)))
-        pr = problem(scene.images, lay, surf.mask, tsfit_mask, seed=seed)
+                                  ne=_ne(res.b, surf.normals, surf.object_mask)))
+        pr = problem(scene.images, lay, surf.object_mask, tsfit_mask, seed=seed)
         t = time.perf_counter()
         fit = tsfit(pr, opt)
         dt = time.perf_counter() - t
-        ne = _ne(fit.b, surf.normals, surf.mask)
+        ne = _ne(fit.b, surf.normals, surf.object_mask)
         best = min(mask_rows, key=lambda r: r["ne"])
         rows.append(dict(noise=noise, method="tsfit", seconds=dt, ne=ne,
                          best_mask=best["method"], best_mask_ne=best["ne"],
                          ratio=best["ne"] / ne if ne > 0 else float("inf"),
                          m=float(np.median(fit.info["m"])),
                          rho_s=float(np.median(fit.info["rho_s"])),
-                         converged=float(np.mean(fit.converged[surf.mask]))))
+                         converged=float(np.mean(fit.converged[surf.object_mask]))))
         rows.extend(mask_rows)
     return rows

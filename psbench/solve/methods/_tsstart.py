@@ -14,8 +14,6 @@ scale is estimated (:func:`noise_sigma`).
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._lm import _solve_spd
@@ -151,10 +149,12 @@ def noise_sigma(I, pred, w):
     """
     step = max(1, I.shape[1] // SIGMA_PIXELS)
     r = np.abs(I[:, ::step] - pred[:, ::step])
-    r[w[:, ::step] < 0.5] = np.nan
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN images
-        sig = 1.4826 * np.nanmedian(r, axis=1)
+    inl = w[:, ::step] >= 0.5
+    sig = np.full(r.shape[0], np.nan)
+    for i in range(r.shape[0]):  # per image: much faster than nanmedian over NaNs
+        ri = r[i][inl[i]]
+        if ri.size:
+            sig[i] = 1.4826 * np.median(ri)
     ok = np.isfinite(sig)
     fill = float(np.median(sig[ok])) if ok.any() else 0.0
     return np.where(ok, sig, fill).astype(np.float32)

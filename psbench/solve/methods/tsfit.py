@@ -6,6 +6,7 @@ keeps those observations and fits the model to them; see :func:`tsfit`.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 import warnings
 from dataclasses import dataclass
@@ -15,7 +16,7 @@ import numpy as np
 from ..._checks import PsbenchError
 from ...registry import Method
 from ..base import Fit, Options, check_choice, check_int, check_number
-from . import _lm, _tsgrid, _tsshared
+from . import _lm, _tsgrid, _tsprop, _tsshared
 from ._tsstart import (SIGMA_PIXELS, STARTS, lambert_pred, noise_sigma, put_back,
                        resolve_start, start_weights, unit)
 
@@ -85,6 +86,10 @@ class TsfitOptions(Options):
         Candidate normals (a uniform hemisphere lattice) of the global start
         search; each pixel starts from the best of them and the robust start. 0:
         start from the robust solution alone.
+    propagate : int
+        Sweeps of neighbour propagation (pixels whose normal disagrees with their
+        neighbours restart from the neighbours' normals and keep the refit if it
+        lowers their own cost); >= 0, 0: off.
     """
 
     rho_s_mode: str = "shared"
@@ -94,7 +99,7 @@ class TsfitOptions(Options):
     m_max: float = 50.0
     rho_s_max: float = 10.0
     lm_max_iter: int = 100
-    lm_tol: float = 1e-4
+    lm_tol: float = 1e-3
     start: str = "auto"
     weights: str = "start"
     dark_ratio: float = 0.5
@@ -102,6 +107,7 @@ class TsfitOptions(Options):
     refine: int = 1
     m_sample: int = 2000
     start_grid: int = 64
+    propagate: int = 4
 
     def __post_init__(self):
         super().__post_init__()
@@ -134,6 +140,7 @@ class TsfitOptions(Options):
         check_int(self.refine, "refine", lo=0)
         check_int(self.m_sample, "m_sample", lo=100)
         check_int(self.start_grid, "start_grid", lo=0)
+        check_int(self.propagate, "propagate", lo=0)
 
 
 def tsfit(problem, options=None) -> Fit:
@@ -224,6 +231,24 @@ def tsfit(problem, options=None) -> Fit:
         raise PsbenchError(f"images: tsfit needs at least {MIN_OBS} images (4 unknowns per "
                            f"pixel), got {k}")
     start_name = resolve_start(opt.start)
+    with _single_thread_blas():
+        return _tsfit(problem, opt, start_name)
+
+
+def _single_thread_blas():
+    """One BLAS thread for the duration of a fit: tsfit's matrix products are small
+    ((6, k) x (k, 4096)); a multi-threaded BLAS spends more time synchronising its
+    threads than computing (measured: 4x the CPU time at 512^2 x 16 on 2 cores)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a declared dependency
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _tsfit(problem, opt, start_name):
+    images = problem.images
+    k, H, W = images.shape
     t0 = time.perf_counter()
     timings = {}
 
@@ -297,6 +322,14 @@ def tsfit(problem, options=None) -> Fit:
                     conv, cost)
     timings["fit"] = time.perf_counter() - t1
 
+    t1 = time.perf_counter()
+    n_prop = 0
+    if opt.propagate and f.size:
+        grid = _tsprop.Grid(idx, (H, W), fitted)
+        n_prop = _tsprop.propagate(L, I, w, n, rd, rs, m, rs_max, cost, grid, cols, opt, iters,
+                                   conv, rs_shared is not None, sweeps=opt.propagate)
+    timings["propagate"] = time.perf_counter() - t1
+
     # never return NaN: a pixel that went non-finite keeps its start
     bad = ~(np.isfinite(n).all(0) & np.isfinite(rd) & np.isfinite(rs) & np.isfinite(m))
     keep = ~fitted | bad
@@ -323,7 +356,7 @@ def tsfit(problem, options=None) -> Fit:
     info = dict(rho_s=rs_shared if rs_shared is not None else plane(rs),
                 m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
                 rms=plane(np.sqrt(cost / wsum)), start=start_name,
-                kept_start=plane(keep, False, bool), sigma=sigma,
+                kept_start=plane(keep, False, bool), sigma=sigma, propagated=n_prop,
                 timings=dict(timings, total=time.perf_counter() - t0))
     return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),

@@ -1,0 +1,157 @@
+"""Neighbour propagation of tsfit: pixels restart from their neighbours' normals.
+
+The per-pixel cost is not convex (the highlight lobe and the self-shadow
+terminator each create basins), so a pixel can end in a local minimum whose normal
+disagrees with the pixels around it while a neighbour's solution lies in a lower
+basin of its own cost. Surfaces are mostly smooth at the pixel scale, so a
+neighbour's normal is a good start in the right basin: this is the propagation
+step of PatchMatch-style per-pixel solvers. Nothing is smoothed: a pixel takes the
+refit only if it lowers *its own* cost, so where the surface has a crease the
+pixel keeps its solution.
+
+Which pixels are retried: those whose normal differs from the mean normal of their
+8 neighbours by more than ``FLAG`` times the median of that difference over the
+object (a scale-free rule: the median reflects the noise and the curvature of the
+object at hand). Each retried pixel evaluates the normals of its neighbours (rho_d,
+and rho_s when per pixel, in closed form), restarts Levenberg–Marquardt from the
+best one and keeps the result if its cost is lower. Sweeps repeat on the pixels
+next to a change, so a correct solution spreads into a cluster of wrong ones.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _lm
+
+__all__ = ["Grid", "propagate"]
+
+#: retry threshold: multiples of the median angle between a normal and its
+#: neighbours' mean normal
+FLAG = 3.0
+#: sweeps at most (a change spreads by one pixel per sweep)
+SWEEPS = 4
+#: a refit replaces a pixel's solution when it lowers the cost by this fraction
+#: (smaller differences are Levenberg–Marquardt's tolerance, not another basin)
+GAIN = 1e-3
+_OFFSETS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+class Grid:
+    """The gathered object pixels on the image grid (8-neighbourhoods).
+
+    Parameters
+    ----------
+    idx : (P,) int
+        Flat indices of the gathered pixels in the (H, W) image.
+    shape : (H, W)
+    fitted : (P,) bool
+        Pixels that take part (the others are never a neighbour).
+    """
+
+    def __init__(self, idx, shape, fitted):
+        H, W = shape
+        self.shape = shape
+        y, x = np.divmod(idx, W)
+        self.yx = (y + 1, x + 1)  # in the 1-pixel padded grid
+        self.fitted = fitted
+        pos = np.full((H + 2, W + 2), -1, dtype=np.int64)
+        pos[y[fitted] + 1, x[fitted] + 1] = np.flatnonzero(fitted)
+        self.nb = np.stack([pos[y + 1 + dy, x + 1 + dx] for dy, dx in _OFFSETS])
+        self.nb[:, ~fitted] = -1  # (8, P) gathered neighbour indices, -1: none
+
+    def disagreement(self, n):
+        """Angle (radians) between each fitted normal and the mean of its fitted
+        neighbours' normals; NaN where there is none."""
+        H, W = self.shape
+        pad = np.zeros((3, H + 2, W + 2), dtype=np.float64)
+        f = self.fitted
+        pad[:, self.yx[0][f], self.yx[1][f]] = n[:, f]
+        acc = np.zeros((3, H, W))
+        for dy, dx in _OFFSETS:
+            acc += pad[:, 1 + dy:H + 1 + dy, 1 + dx:W + 1 + dx]
+        acc = acc[:, self.yx[0] - 1, self.yx[1] - 1]  # (3, P)
+        norm = np.sqrt((acc * acc).sum(0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos = (acc * n).sum(0) / norm
+        return np.where((norm > 0) & f, np.arccos(np.clip(cos, -1.0, 1.0)), np.nan)
+
+
+def propagate(L, I, w, n, rd, rs, m, rs_max, cost, grid, cols, opt, iters, conv, rs_fixed,
+              *, sweeps=SWEEPS):
+    """Retry disagreeing pixels from their neighbours' normals (in place).
+
+    Parameters
+    ----------
+    L : _lm.Lights
+    I, w : (k, P) float32
+    n : (3, P) float32; rd, rs, m, rs_max : (P,) float32; cost : (P,) float64
+        The fitted state, updated in place where a retry lowers the cost.
+    grid : Grid
+    cols : tuple
+        Per-pixel unknowns besides n and rho_d (as for :func:`_lm.fit`).
+    opt : TsfitOptions
+    iters : (P,) int32, conv : (P,) bool
+        Updated in place.
+    rs_fixed : bool
+        rho_s is shared (not re-solved per candidate).
+    sweeps : int
+        Sweeps at most.
+
+    Returns
+    -------
+    int
+        Pixels whose solution changed.
+    """
+    P = n.shape[1]
+    nb = grid.nb
+    changed_total = np.zeros(P, dtype=bool)
+    d = grid.disagreement(n)
+    ok = np.isfinite(d)
+    if not ok.any():
+        return 0
+    thresh = FLAG * float(np.median(d[ok]))
+    todo = ok & (d > thresh)
+    new = np.ones(P, dtype=bool)  # candidates not yet tried: every neighbour at first
+    for _ in range(sweeps):
+        sel = np.flatnonzero(todo)
+        if sel.size == 0:
+            break
+        Is, ws, rsm = I[:, sel], w[:, sel], rs_max[sel]
+        ms = m[sel].copy()
+        rsf = rs[sel] if rs_fixed else None
+        wII = _lm.weighted_energy(Is, ws)
+        best = np.full(sel.size, np.inf)
+        bn = n[:, sel].copy()
+        for j in range(nb.shape[0]):
+            q = nb[j, sel]
+            has = q >= 0
+            has[has] = new[q[has]]
+            if not has.any():
+                continue
+            cand = n[:, np.where(has, q, sel)]
+            c = _lm.init_rho(L, Is, ws, cand, ms, rsm, rs=rsf, wII=wII)[2]
+            c[~has] = np.inf
+            b = c < best
+            best[b] = c[b]
+            bn[:, b] = cand[:, b]
+        rds, rss = _lm.init_rho(L, Is, ws, bn, ms, rsm, rs=rsf)
+        it, cv, c = _lm.fit(L, Is, ws, bn, rds, rss, ms, rsm, cols=cols, m_lo=opt.m_min,
+                            m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
+        iters[sel] += it
+        win = np.isfinite(best) & (c < cost[sel] * (1 - GAIN))
+        pick = sel[win]
+        n[:, pick], rd[pick], rs[pick], m[pick] = bn[:, win], rds[win], rss[win], ms[win]
+        cost[pick], conv[pick] = c[win], cv[win]
+        if pick.size == 0:
+            break
+        changed_total[pick] = True
+        # next sweep: the disagreeing neighbours of a change, with the changed
+        # normals as their new candidates
+        new[:] = False
+        new[pick] = True
+        near = np.zeros(P, dtype=bool)
+        q = nb[:, pick]
+        near[q[q >= 0]] = True
+        d = grid.disagreement(n)
+        todo = near & np.isfinite(d) & (d > thresh)
+    return int(changed_total.sum())
