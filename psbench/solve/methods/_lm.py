@@ -58,19 +58,23 @@ class Lights:
 
 
 def _tangents(n):
-    """Orthonormal tangent basis (t1, t2) (3, p) of unit normals n (3, p)."""
+    """Orthonormal tangent basis (t1, t2) (3, p) of unit normals n (3, p).
+
+    Branch-free and without a square root (Duff et al., "Building an orthonormal
+    basis, revisited", JCGT 2017): smooth in n except across nz = 0.
+    """
     nx, ny, nz = n
-    use_x = np.abs(nx) < 0.6  # cross with the axis least aligned with n
-    # t1 = a x n with a = e_x: (0, -nz, ny); with a = e_y: (nz, 0, -nx)
+    sign = np.copysign(np.float32(1.0), nz)
+    a = -1.0 / (sign + nz)
+    b = nx * ny * a
     t1 = np.empty_like(n)
-    t1[0] = np.where(use_x, 0.0, nz)
-    t1[1] = np.where(use_x, -nz, 0.0)
-    t1[2] = np.where(use_x, ny, -nx)
-    t1 /= np.sqrt((t1 * t1).sum(0))
     t2 = np.empty_like(n)
-    t2[0] = ny * t1[2] - nz * t1[1]
-    t2[1] = nz * t1[0] - nx * t1[2]
-    t2[2] = nx * t1[1] - ny * t1[0]
+    t1[0] = 1.0 + sign * nx * nx * a
+    t1[1] = sign * b
+    t1[2] = -sign * nx
+    t2[0] = b
+    t2[1] = sign + ny * ny * a
+    t2[2] = -ny
     return t1, t2
 
 
@@ -315,10 +319,12 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     g = np.empty((q, P), dtype=np.float32)
     t1 = np.empty((3, P), dtype=np.float32)
     t2 = np.empty((3, P), dtype=np.float32)
-    for lo in range(0, P, block):
+    def first(lo):
         s = slice(lo, lo + block)
         cw[s], A[..., s], g[:, s], t1[:, s], t2[:, s] = evaluate(
             L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], jac=True, cols=cols)
+
+    pmap(first, range(0, P, block))
     lam = np.full(P, 1e-3)
     active = np.ones(P, dtype=bool)
     itw = np.zeros(P, dtype=np.int32)
@@ -328,42 +334,44 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
         n[:, widx], rd[widx], rs[widx], m[widx] = nw, rdw, rsw, mw
         cost[widx], iters[widx], conv[widx] = cw, itw, convw
 
+    def step(lo):  # one LM iteration on one block (blocks are independent)
+        s = slice(lo, lo + block)
+        a = active[s]
+        if not a.any():
+            return
+        cand, new, ok, small = _step(
+            L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], rsmw[s], A[..., s],
+            g[:, s], t1[:, s], t2[:, s], lam[s], a, cols, m_lo, m_hi, tol)
+        if new is None:
+            better = np.zeros_like(a)
+        else:
+            c2, A2, g2, u1, u2 = new
+            better = a & ~small & ok & (c2 < cw[s]) & np.isfinite(c2)
+            for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                             (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
+                             (t1[:, s], u1), (t2[:, s], u2)):
+                if src is not dst:
+                    np.copyto(dst, src, where=better)
+        ls = lam[s]
+        ls *= np.where(better, 0.2, np.where(a, 8.0, 1.0))
+        np.maximum(ls, 1e-9, out=ls)
+        itw[s] += a
+        done = a & small
+        # a step below tol is taken without evaluating it (the Gauss-Newton model
+        # is exact to second order there): one evaluation less per pixel
+        take = done & ok
+        if take.any():
+            for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                             (mw[s], cand[3])):
+                if src is not dst:
+                    np.copyto(dst, src, where=take)
+        convw[s] |= done
+        active[s] &= ~done
+
     for _ in range(max_iter):
         if not active.any():
             break
-        for lo in range(0, widx.size, block):
-            s = slice(lo, lo + block)
-            a = active[s]
-            if not a.any():
-                continue
-            cand, new, ok, small = _step(
-                L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], rsmw[s], A[..., s],
-                g[:, s], t1[:, s], t2[:, s], lam[s], a, cols, m_lo, m_hi, tol)
-            if new is None:
-                better = np.zeros_like(a)
-            else:
-                c2, A2, g2, u1, u2 = new
-                better = a & ~small & ok & (c2 < cw[s]) & np.isfinite(c2)
-                for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
-                                 (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
-                                 (t1[:, s], u1), (t2[:, s], u2)):
-                    if src is not dst:
-                        np.copyto(dst, src, where=better)
-            ls = lam[s]
-            ls *= np.where(better, 0.2, np.where(a, 8.0, 1.0))
-            np.maximum(ls, 1e-9, out=ls)
-            itw[s] += a
-            done = a & small
-            # a step below tol is taken without evaluating it (the Gauss-Newton model
-            # is exact to second order there): one evaluation less per pixel
-            take = done & ok
-            if take.any():
-                for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
-                                 (mw[s], cand[3])):
-                    if src is not dst:
-                        np.copyto(dst, src, where=take)
-            convw[s] |= done
-            active[s] &= ~done
+        pmap(step, range(0, widx.size, block))
         na = int(active.sum())
         if 0 < na < 0.5 * widx.size:  # compact the working set
             if nw is n:
@@ -381,6 +389,27 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     else:
         iters[:], conv[:] = itw, convw
     return iters, conv, cost
+
+
+#: worker threads for the per-block work (numpy releases the GIL in its loops);
+#: set by tsfit from its ``threads`` option
+THREADS = 1
+_POOL = {}
+
+
+def pmap(fn, items):
+    """Call ``fn`` on every item, on ``THREADS`` threads (results discarded)."""
+    items = list(items)
+    if THREADS <= 1 or len(items) < 2:
+        for it in items:
+            fn(it)
+        return
+    pool = _POOL.get(THREADS)
+    if pool is None:
+        from concurrent.futures import ThreadPoolExecutor
+        pool = _POOL[THREADS] = ThreadPoolExecutor(THREADS, thread_name_prefix="tsfit")
+    for _ in pool.map(fn, items):
+        pass
 
 
 def chunks(P, k):

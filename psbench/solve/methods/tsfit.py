@@ -86,6 +86,9 @@ class TsfitOptions(Options):
         Candidate normals (a uniform hemisphere lattice) of the global start
         search; each pixel starts from the best of them and the robust start. 0:
         start from the robust solution alone.
+    threads : int
+        Worker threads for the per-pixel work (numpy releases the GIL in its
+        loops); >= 1.
     propagate : int
         Sweeps of neighbour propagation (pixels whose normal disagrees with their
         neighbours restart from the neighbours' normals and keep the refit if it
@@ -106,8 +109,9 @@ class TsfitOptions(Options):
     dark_sigmas: float = 3.0
     refine: int = 1
     m_sample: int = 2000
-    start_grid: int = 64
-    propagate: int = 4
+    start_grid: int = 0
+    propagate: int = 2
+    threads: int = 1
 
     def __post_init__(self):
         super().__post_init__()
@@ -141,6 +145,7 @@ class TsfitOptions(Options):
         check_int(self.m_sample, "m_sample", lo=100)
         check_int(self.start_grid, "start_grid", lo=0)
         check_int(self.propagate, "propagate", lo=0)
+        check_int(self.threads, "threads", lo=1)
 
 
 def tsfit(problem, options=None) -> Fit:
@@ -218,7 +223,8 @@ def tsfit(problem, options=None) -> Fit:
         or fixed, else (H, W) float32), ``rms`` (H, W) weighted RMS residual of the
         fit, ``kept_start`` (H, W) bool, ``start`` (the start step used), ``sigma``
         (k,) the noise scales of the final weights (None with ``weights="mask"``),
-        ``timings`` (seconds per stage). Non-converged pixels keep their best
+        ``timings`` and ``cpu_timings`` (wall and CPU seconds per stage: start,
+        lobe, fit, propagate, total; CPU time is that of the whole process). Non-converged pixels keep their best
         estimate (LM only accepts steps that lower the cost) and raise a
         RuntimeWarning; no NaN is ever returned.
     """
@@ -231,8 +237,12 @@ def tsfit(problem, options=None) -> Fit:
         raise PsbenchError(f"images: tsfit needs at least {MIN_OBS} images (4 unknowns per "
                            f"pixel), got {k}")
     start_name = resolve_start(opt.start)
-    with _single_thread_blas():
-        return _tsfit(problem, opt, start_name)
+    threads, _lm.THREADS = _lm.THREADS, opt.threads
+    try:
+        with _single_thread_blas():
+            return _tsfit(problem, opt, start_name)
+    finally:
+        _lm.THREADS = threads
 
 
 def _single_thread_blas():
@@ -249,8 +259,7 @@ def _single_thread_blas():
 def _tsfit(problem, opt, start_name):
     images = problem.images
     k, H, W = images.shape
-    t0 = time.perf_counter()
-    timings = {}
+    clock = _Clock()
 
     obj = np.asarray(problem.object_mask, dtype=bool).reshape(-1)
     idx = np.flatnonzero(obj)
@@ -272,7 +281,7 @@ def _tsfit(problem, opt, start_name):
         del w_start
     else:
         w = valid.astype(np.float32)
-    timings["start"] = time.perf_counter() - t0
+    clock.stage("start")
 
     inv_mu = (1.0 / np.where(L.mu > 0, L.mu, 1))[:, None]
     top = np.empty(idx.size, dtype=np.float32)
@@ -283,11 +292,9 @@ def _tsfit(problem, opt, start_name):
     fitted = ((w > 0).sum(axis=0) >= MIN_OBS) & (rd0 > 0)
     f = np.flatnonzero(fitted)
 
-    t1 = time.perf_counter()
     rs_shared, m_shared = _tsshared.estimate(L, I, w, n0, rs_max, opt, problem.seed, f)
-    timings["lobe"] = time.perf_counter() - t1
+    clock.stage("lobe")
 
-    t1 = time.perf_counter()
     P = idx.size
     n, rd = n0.copy(), rd0.copy()
     rs = np.full(P, rs_shared or 0.0, dtype=np.float32)
@@ -304,9 +311,8 @@ def _tsfit(problem, opt, start_name):
     rd[f], rs[f] = _lm.init_rho(L, If, wf, nf, m[f], rs_max[f], rs=rs_fixed)
     n[:, f] = nf
     _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost)
-    if opt.start_grid:
-        _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
-                rs_shared)
+    _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
+            rs_shared)
     for _ in range(opt.refine if opt.weights == "start" else 0):
         sub = slice(0, None, max(1, P // SIGMA_PIXELS))
         sigma = noise_sigma(I[:, sub], _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub]),
@@ -320,15 +326,14 @@ def _tsfit(problem, opt, start_name):
             break
         _fit_subset(L, I, w, n, rd, rs, m, rs_max, np.flatnonzero(ok), cols, opt, iters,
                     conv, cost)
-    timings["fit"] = time.perf_counter() - t1
+    clock.stage("fit")
 
-    t1 = time.perf_counter()
     n_prop = 0
     if opt.propagate and f.size:
         grid = _tsprop.Grid(idx, (H, W), fitted)
         n_prop = _tsprop.propagate(L, I, w, n, rd, rs, m, rs_max, cost, grid, cols, opt, iters,
                                    conv, rs_shared is not None, sweeps=opt.propagate)
-    timings["propagate"] = time.perf_counter() - t1
+    clock.stage("propagate")
 
     # never return NaN: a pixel that went non-finite keeps its start
     bad = ~(np.isfinite(n).all(0) & np.isfinite(rd) & np.isfinite(rs) & np.isfinite(m))
@@ -357,14 +362,36 @@ def _tsfit(problem, opt, start_name):
                 m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
                 rms=plane(np.sqrt(cost / wsum)), start=start_name,
                 kept_start=plane(keep, False, bool), sigma=sigma, propagated=n_prop,
-                timings=dict(timings, total=time.perf_counter() - t0))
+                timings=clock.wall(), cpu_timings=clock.cpu())
     return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
                converged=plane(conv, True, bool), info=info)
 
 
-#: pixels whose RMS residual exceeds this multiple of the median are searched again
-REPAIR = 2.0
+class _Clock:
+    """Wall and CPU seconds per stage (``stage(name)`` closes the running one)."""
+
+    def __init__(self):
+        self.t = self.t0 = (time.perf_counter(), time.process_time())
+        self.stages = {}
+
+    def stage(self, name):
+        now = (time.perf_counter(), time.process_time())
+        self.stages[name] = (now[0] - self.t[0], now[1] - self.t[1])
+        self.t = now
+
+    def wall(self):
+        return dict({k: v[0] for k, v in self.stages.items()},
+                    total=time.perf_counter() - self.t0[0])
+
+    def cpu(self):
+        return dict({k: v[1] for k, v in self.stages.items()},
+                    total=time.process_time() - self.t0[1])
+
+
+#: pixels whose RMS residual exceeds this multiple of the median are searched again,
+#: from the best of this many hemisphere normals
+REPAIR, REPAIR_GRID = 2.0, 256
 
 
 def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
@@ -380,7 +407,7 @@ def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_sh
     Is, ws = I[:, sel], w[:, sel]
     rs_fixed = None if rs_shared is None else rs[sel]
     ms = np.full(sel.size, m_shared, dtype=np.float32)
-    ns = _tsgrid.grid_start(L, Is, ws, n[:, sel], m_shared, 4 * opt.start_grid, rs=rs_fixed)[0]
+    ns = _tsgrid.grid_start(L, Is, ws, n[:, sel], m_shared, REPAIR_GRID, rs=rs_fixed)[0]
     rds, rss = _lm.init_rho(L, Is, ws, ns, ms, rs_max[sel], rs=rs_fixed)
     it, cv, c = _lm.fit(L, Is, ws, ns, rds, rss, ms, rs_max[sel], cols=cols, m_lo=opt.m_min,
                         m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
