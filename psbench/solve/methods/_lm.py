@@ -108,7 +108,8 @@ def evaluate(L, I, w, n, rd, rs, m, *, jac=False, cols=()):
     Parameters
     ----------
     L : Lights
-    I, w : (k, p) float32
+    I : (k, p) float32
+    w : (k, p) float32 or bool
         Observations and weights.
     n : (3, p) float32 unit normals; rd, rs, m : (p,) float32.
     jac : bool
@@ -143,7 +144,7 @@ def evaluate(L, I, w, n, rd, rs, m, *, jac=False, cols=()):
     B = np.divide(th, s, out=s)
     B *= E
     kappa = rs * 2.0 * m * m
-    Gw = np.multiply(w, lit)  # w G^2
+    Gw = np.multiply(w, lit, dtype=np.float32)  # w G^2
     Gr = np.multiply(wr, lit, out=wr)  # w G r
     if not L.unit:
         Gw *= L.mu2_col
@@ -324,7 +325,8 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
         cw[s], A[..., s], g[:, s], t1[:, s], t2[:, s] = evaluate(
             L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], jac=True, cols=cols)
 
-    pmap(first, range(0, P, block))
+    for lo in range(0, P, block):
+        first(lo)
     lam = np.full(P, 1e-3)
     active = np.ones(P, dtype=bool)
     itw = np.zeros(P, dtype=np.int32)
@@ -371,7 +373,8 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     for _ in range(max_iter):
         if not active.any():
             break
-        pmap(step, range(0, widx.size, block))
+        for lo in range(0, widx.size, block):
+            step(lo)
         na = int(active.sum())
         if 0 < na < 0.5 * widx.size:  # compact the working set
             if nw is n:
@@ -389,27 +392,6 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     else:
         iters[:], conv[:] = itw, convw
     return iters, conv, cost
-
-
-#: worker threads for the per-block work (numpy releases the GIL in its loops);
-#: set by tsfit from its ``threads`` option
-THREADS = 1
-_POOL = {}
-
-
-def pmap(fn, items):
-    """Call ``fn`` on every item, on ``THREADS`` threads (results discarded)."""
-    items = list(items)
-    if THREADS <= 1 or len(items) < 2:
-        for it in items:
-            fn(it)
-        return
-    pool = _POOL.get(THREADS)
-    if pool is None:
-        from concurrent.futures import ThreadPoolExecutor
-        pool = _POOL[THREADS] = ThreadPoolExecutor(THREADS, thread_name_prefix="tsfit")
-    for _ in pool.map(fn, items):
-        pass
 
 
 def chunks(P, k):

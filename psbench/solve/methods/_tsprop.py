@@ -53,23 +53,34 @@ class Grid:
     def __init__(self, idx, shape, fitted):
         H, W = shape
         self.shape = shape
-        y, x = np.divmod(idx, W)
-        self.fitted = fitted
         self.idx = idx
+        self.fitted = fitted
+        y, x = np.divmod(idx, W)
         self.flat = (y + 1) * (W + 2) + (x + 1)  # in the 1-pixel padded grid
-        pos = np.full((H + 2) * (W + 2), -1, dtype=np.int64)
-        pos[self.flat[fitted]] = np.flatnonzero(fitted)
-        self.nb = np.stack([pos[self.flat + dy * (W + 2) + dx] for dy, dx in _OFFSETS])
-        self.nb[:, ~fitted] = -1  # (8, P) gathered neighbour indices, -1: none
+
+    def _padded(self, values, dtype):
+        """(c, P) values of the fitted pixels on the padded grid (c, H + 2, W + 2)."""
+        H, W = self.shape
+        pad = np.zeros((values.shape[0], (H + 2) * (W + 2)), dtype=dtype)
+        f = self.fitted
+        pad[:, self.flat[f]] = values[:, f]
+        return pad.reshape(-1, H + 2, W + 2)
+
+    def near(self, changed):
+        """(P,) bool: fitted pixels with a changed pixel among their 8 neighbours."""
+        H, W = self.shape
+        pad = self._padded(changed[None], bool)[0]
+        out = np.zeros((H, W), dtype=bool)
+        for dy, dx in _OFFSETS:
+            out |= pad[1 + dy:H + 1 + dy, 1 + dx:W + 1 + dx]
+        return out.reshape(-1)[self.idx] & self.fitted
 
     def disagreement(self, n):
         """Angle (radians) between each fitted normal and the mean of its fitted
         neighbours' normals (NaN where there is none), and that mean (3, P)."""
         H, W = self.shape
-        pad = np.zeros((3, (H + 2) * (W + 2)), dtype=np.float32)
         f = self.fitted
-        pad[:, self.flat[f]] = n[:, f]
-        pad = pad.reshape(3, H + 2, W + 2)
+        pad = self._padded(n, np.float32)
         acc = np.zeros((3, H, W), dtype=np.float32)
         for dy, dx in _OFFSETS:
             acc += pad[:, 1 + dy:H + 1 + dy, 1 + dx:W + 1 + dx]
@@ -135,9 +146,9 @@ def propagate(L, I, w, n, rd, rs, m, rs_max, cost, grid, cols, opt, iters, conv,
         cost[pick], conv[pick] = c[win], cv[win]
         changed[pick] = True
         # next sweep: the disagreeing neighbours of a change (their mean moved)
-        near = np.zeros(P, dtype=bool)
-        q = grid.nb[:, pick]
-        near[q[q >= 0]] = True
+        new = np.zeros(P, dtype=bool)
+        new[pick] = True
+        near = grid.near(new)
         d, mean = grid.disagreement(n)
         todo = near & np.isfinite(d) & (d > thresh)
     return int(changed.sum())

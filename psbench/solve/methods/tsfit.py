@@ -86,9 +86,6 @@ class TsfitOptions(Options):
         Candidate normals (a uniform hemisphere lattice) of the global start
         search; each pixel starts from the best of them and the robust start. 0:
         start from the robust solution alone.
-    threads : int
-        Worker threads for the per-pixel work (numpy releases the GIL in its
-        loops); >= 1.
     propagate : int
         Sweeps of neighbour propagation (pixels whose normal disagrees with their
         neighbours restart from the neighbours' normals and keep the refit if it
@@ -111,7 +108,6 @@ class TsfitOptions(Options):
     m_sample: int = 2000
     start_grid: int = 0
     propagate: int = 2
-    threads: int = 1
 
     def __post_init__(self):
         super().__post_init__()
@@ -145,7 +141,6 @@ class TsfitOptions(Options):
         check_int(self.m_sample, "m_sample", lo=100)
         check_int(self.start_grid, "start_grid", lo=0)
         check_int(self.propagate, "propagate", lo=0)
-        check_int(self.threads, "threads", lo=1)
 
 
 def tsfit(problem, options=None) -> Fit:
@@ -237,12 +232,8 @@ def tsfit(problem, options=None) -> Fit:
         raise PsbenchError(f"images: tsfit needs at least {MIN_OBS} images (4 unknowns per "
                            f"pixel), got {k}")
     start_name = resolve_start(opt.start)
-    threads, _lm.THREADS = _lm.THREADS, opt.threads
-    try:
-        with _single_thread_blas():
-            return _tsfit(problem, opt, start_name)
-    finally:
-        _lm.THREADS = threads
+    with _single_thread_blas():
+        return _tsfit(problem, opt, start_name)
 
 
 def _single_thread_blas():
@@ -276,20 +267,21 @@ def _tsfit(problem, opt, start_name):
         step = max(1, idx.size // SIGMA_PIXELS)
         sub = slice(0, None, step)
         sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub])
+        del w_start
         w = put_back(I, valid, lambda s: lambert_pred(b0[:, s], S), sigma, opt.dark_ratio,
                      opt.dark_sigmas)
-        del w_start
     else:
-        w = valid.astype(np.float32)
+        del w_start
+        w = valid.copy()  # weights are 0 or 1: kept as bool (a quarter of the memory)
     clock.stage("start")
 
     inv_mu = (1.0 / np.where(L.mu > 0, L.mu, 1))[:, None]
     top = np.empty(idx.size, dtype=np.float32)
     for lo in range(0, idx.size, 1 << 16):
         s = slice(lo, lo + (1 << 16))
-        top[s] = (I[:, s] * inv_mu * (w[:, s] > 0)).max(axis=0)
+        top[s] = (I[:, s] * inv_mu * w[:, s]).max(axis=0)
     rs_max = (opt.rho_s_max * top).astype(np.float32)
-    fitted = ((w > 0).sum(axis=0) >= MIN_OBS) & (rd0 > 0)
+    fitted = (w.sum(axis=0) >= MIN_OBS) & (rd0 > 0)
     f = np.flatnonzero(fitted)
 
     rs_shared, m_shared = _tsshared.estimate(L, I, w, n0, rs_max, opt, problem.seed, f)
@@ -303,14 +295,8 @@ def _tsfit(problem, opt, start_name):
     iters = np.zeros(P, dtype=np.int32)
     conv = np.ones(P, dtype=bool)
     cost = np.zeros(P)
-    rs_fixed = None if rs_shared is None else rs[f]
-    If, wf = (I, w) if f.size == P else (I[:, f], w[:, f])
-    nf = n[:, f]
-    if opt.start_grid:
-        nf = _tsgrid.grid_start(L, If, wf, nf, m_shared, opt.start_grid, rs=rs_fixed)[0]
-    rd[f], rs[f] = _lm.init_rho(L, If, wf, nf, m[f], rs_max[f], rs=rs_fixed)
-    n[:, f] = nf
-    _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost)
+    _fit_subset(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost,
+                start=(m_shared, rs_shared is not None))
     _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
             rs_shared)
     for _ in range(opt.refine if opt.weights == "start" else 0):
@@ -321,7 +307,7 @@ def _tsfit(problem, opt, start_name):
                          sigma, opt.dark_ratio, opt.dark_sigmas)
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
-        ok = changed & ((w > 0).sum(axis=0) >= MIN_OBS)
+        ok = changed & (w.sum(axis=0) >= MIN_OBS)
         if not ok.any():
             break
         _fit_subset(L, I, w, n, rd, rs, m, rs_max, np.flatnonzero(ok), cols, opt, iters,
@@ -355,9 +341,10 @@ def _tsfit(problem, opt, start_name):
 
     b = np.zeros((H * W, 3), dtype=np.float32)
     b[idx] = (n * rd).T
-    wfull = np.asarray(problem.valid, dtype=np.float32).reshape(k, -1).copy()
+    del I, valid  # the gathered copies: not needed for the output
+    wfull = np.array(problem.valid, dtype=np.float32).reshape(k, -1)
     wfull[:, idx] = w
-    wsum = np.maximum(w.sum(axis=0), 1e-30)
+    wsum = np.maximum(w.sum(axis=0), 1).astype(np.float64)
     info = dict(rho_s=rs_shared if rs_shared is not None else plane(rs),
                 m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
                 rms=plane(np.sqrt(cost / wsum)), start=start_name,
@@ -400,7 +387,7 @@ def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_sh
     keep the lower cost (a start in the wrong basin ends with a high residual)."""
     if f.size == 0:
         return
-    rms = np.sqrt(cost[f] / np.maximum(w[:, f].sum(0), 1e-30))
+    rms = np.sqrt(cost[f] / np.maximum(w[:, f].sum(0), 1))
     sel = f[rms > REPAIR * np.median(rms)]
     if sel.size == 0:
         return
@@ -418,20 +405,35 @@ def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_sh
     conv[pick], cost[pick] = cv[b], c[b]
 
 
-def _fit_subset(L, I, w, n, rd, rs, m, rs_max, sel, cols, opt, iters, conv, cost):
-    """LM on the pixels ``sel`` (in place on the per-pixel arrays)."""
-    if sel.size == 0:
-        return
-    whole = sel.size == rd.size
-    pick = (lambda a: a) if whole else (lambda a: a[..., sel])
-    ns, rds, rss, ms = (pick(a).copy() for a in (n, rd, rs, m))
-    it, cv, c = _lm.fit(L, pick(I), pick(w), ns, rds, rss, ms, pick(rs_max), cols=cols,
-                        m_lo=opt.m_min, m_hi=opt.m_max, max_iter=opt.lm_max_iter,
-                        tol=opt.lm_tol)
-    n[:, sel], rd[sel], rs[sel], m[sel] = ns, rds, rss, ms
-    iters[sel] += it
-    conv[sel] = cv
-    cost[sel] = c
+#: observations (k x pixels) gathered at once for a fit: bounds the memory of the
+#: fit's per-pixel state and of the gathered copies
+FIT_ELEMS = 1 << 22
+
+
+def _fit_subset(L, I, w, n, rd, rs, m, rs_max, sel, cols, opt, iters, conv, cost, *,
+                start=None):
+    """LM on the pixels ``sel`` (in place on the per-pixel arrays), in memory-bounded
+    groups. ``start=(m_value, rs_shared)``: first set the start of each pixel (the
+    best of ``opt.start_grid`` hemisphere normals and its own, rho in closed form)."""
+    group = max(4096, FIT_ELEMS // I.shape[0])
+    for lo in range(0, sel.size, group):
+        g = sel[lo:lo + group]
+        cut = g.size == rd.size or (g[-1] - g[0] + 1 == g.size)  # a contiguous range
+        pick = (lambda a: a[..., g[0]:g[-1] + 1]) if cut else (lambda a: a[..., g])
+        Ig, wg, rsm = pick(I), pick(w), pick(rs_max)
+        ns, rds, rss, ms = (pick(a).copy() for a in (n, rd, rs, m))
+        if start is not None:
+            m_value, rs_is_shared = start
+            rsf = rss if rs_is_shared else None
+            if opt.start_grid:
+                ns = _tsgrid.grid_start(L, Ig, wg, ns, m_value, opt.start_grid, rs=rsf)[0]
+            rds, rss = _lm.init_rho(L, Ig, wg, ns, ms, rsm, rs=rsf)
+        it, cv, c = _lm.fit(L, Ig, wg, ns, rds, rss, ms, rsm, cols=cols, m_lo=opt.m_min,
+                            m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)
+        n[:, g], rd[g], rs[g], m[g] = ns, rds, rss, ms
+        iters[g] += it
+        conv[g] = cv
+        cost[g] = c
 
 
 METHOD = Method(name="tsfit", func=tsfit, options=TsfitOptions,
