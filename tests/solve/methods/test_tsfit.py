@@ -13,6 +13,7 @@ import psbench as ps
 from psbench import PsbenchError, registry
 from psbench.solve.base import Fit, Problem
 from psbench.solve.methods import _lm
+from psbench.solve.methods._tsfit_eval import cramer_rao_error
 from psbench.solve.methods.tsfit import METHOD, TsfitOptions, tsfit
 
 
@@ -33,7 +34,7 @@ def _errors(b, truth, mask):
 
 def _mask_ne(scene, lights, mask):
     res = ps.solve(scene.images, lights, mask=mask, object_mask=scene.object_mask)
-    return ps.normal_error(res.normals, scene.surface.normals, scene.object_mask)
+    return ps.normal_error(res.normals, scene.surface.normals, object_mask=scene.object_mask)
 
 
 SCENES = [("semisphere", "45x16"), ("sombrero2", "30x8+60x8")]
@@ -60,7 +61,7 @@ def test_noiseless_ts_is_fitted_exactly(clean):
 
 
 @pytest.mark.parametrize("kw", [dict(rho_s_mode="pixel"), dict(m_mode="pixel"),
-                                dict(m_mode="fixed", m_init=2.0), dict(start_grid=0),
+                                dict(m_mode="fixed", m_init=2.0), dict(start_grid=64),
                                 dict(start="ls"), dict(weights="mask")])
 def test_noiseless_other_modes(kw):
     surf = ps.make_surface("sombrero2", size=56)
@@ -83,21 +84,92 @@ def test_light_power_is_modelled():
     assert fit.info["rho_s"] == pytest.approx(0.5, rel=0.02)
 
 
+# The semisphere misses the acceptance (2x lower NE than the best thesis mask at 5 %
+# noise): measured 1.86x (30x8+60x8) and 1.60x (45x16). Not an optimisation failure:
+# the Cramer-Rao bound of any unbiased per-pixel estimator on these images allows at
+# most 2.06x and 1.91x (best mask NE / mean bound), tsfit is within 11 % and 20 % of
+# that bound (test_near_the_cramer_rao_bound), and its fitted cost is at or below
+# the cost at the true normal on 99 % of the pixels. Reaching 2x needs a prior that
+# pools neighbouring pixels (a smoothness assumption), which tsfit does not make.
+_SEMISPHERE_XFAIL = pytest.mark.xfail(
+    strict=True, reason="per-pixel bound: the acceptance's 2x is at or beyond what any "
+                        "unbiased per-pixel fit can reach on the semisphere at 5 % noise")
+
+
+@pytest.fixture(scope="module")
+def noisy():
+    """tsfit and the best thesis mask on 5 % noise TS scenes, computed once."""
+    cache = {}
+
+    def get(name, lights):
+        if (name, lights) not in cache:
+            surf = ps.make_surface(name, size=96)
+            lay = ps.layout(lights)
+            scene = ps.render(surf, lay, model="ts", noise=0.05, seed=3, shadows="self")
+            fit = tsfit(_problem(scene, lay))
+            best = min(_mask_ne(scene, lay, m) for m in ("None", "Th", "Hi-Re-Sh",
+                                                         "Th-Hi-Re-Sh"))
+            crb = cramer_rao_error(surf.normals, surf.object_mask, lay, scene.sigma)
+            cache[name, lights] = scene, lay, fit, best, crb
+        return cache[name, lights]
+    return get
+
+
 @pytest.mark.filterwarnings("ignore:tsfit.*did not converge:RuntimeWarning")
-@pytest.mark.parametrize("name, lights, factor", [
-    ("sombrero2", "45x16", 2.0), ("sombrero2", "30x8+60x8", 2.0),
-    # the semisphere's rim (zenith > 60 deg, a quarter of its pixels) is ill-posed
-    # for a per-pixel fit at this noise; measured 1.5x-1.8x at 128^2 (see the report)
-    ("semisphere", "30x8+60x8", 1.5)])
-def test_noise_beats_best_thesis_mask(name, lights, factor):
-    surf = ps.make_surface(name, size=96)
-    lay = ps.layout(lights)
+@pytest.mark.parametrize("name, lights", [
+    ("sombrero2", "45x16"), ("sombrero2", "30x8+60x8"),
+    pytest.param("semisphere", "30x8+60x8", marks=_SEMISPHERE_XFAIL),
+    pytest.param("semisphere", "45x16", marks=_SEMISPHERE_XFAIL)])
+def test_noise_beats_best_thesis_mask_2x(noisy, name, lights):
+    scene, _, fit, best, _ = noisy(name, lights)
+    mask = scene.object_mask
+    assert fit.converged[mask].mean() >= 0.99
+    ne = float(_errors(fit.b, scene.surface.normals, mask).mean())
+    assert 2 * ne <= best, (ne, best)
+
+
+@pytest.mark.filterwarnings("ignore:tsfit.*did not converge:RuntimeWarning")
+@pytest.mark.parametrize("name, lights", [
+    ("sombrero2", "45x16"), ("sombrero2", "30x8+60x8"), ("semisphere", "30x8+60x8"),
+    ("semisphere", "45x16")])
+def test_near_the_cramer_rao_bound(noisy, name, lights):
+    """Within 25 % of the per-pixel Cramer-Rao bound (a first-order bound that is
+    not attainable at the rim, where the errors are large), and beating the best
+    thesis mask by at least 1.5x."""
+    scene, _, fit, best, crb = noisy(name, lights)
+    mask = scene.object_mask
+    ne = float(_errors(fit.b, scene.surface.normals, mask).mean())
+    bound = float(np.nanmean(crb[mask]))
+    assert bound <= ne <= 1.25 * bound, (ne, bound)
+    assert 1.5 * ne <= best, (ne, best)
+
+
+def test_cramer_rao_error_lambert_closed_form():
+    # flat surface facing the camera, 8 lights at 45 deg, Lambert (rho_s = 0): the
+    # tangent angles have variance sigma^2 / sum_i (d_i . t)^2 = sigma^2 / 2 each,
+    # so the mean error is sqrt(pi / 2 * sigma^2 / 2)
+    lay = ps.layout("45x8")
+    normals = np.zeros((3, 3, 3), np.float32)
+    normals[..., 2] = 1
+    e = cramer_rao_error(normals, np.ones((3, 3), bool), lay, np.full(8, 0.01), rho_s=0.0)
+    expected = np.degrees(np.sqrt(np.pi / 2 * 0.01 ** 2 / 2))
+    np.testing.assert_allclose(e, expected, rtol=1e-3)
+
+
+def test_propagation_only_lowers_costs_and_helps_the_rim():
+    surf = ps.make_surface("semisphere", size=96)
+    lay = ps.layout("45x16")
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=3, shadows="self")
-    fit = tsfit(_problem(scene, lay))
-    ne = float(_errors(fit.b, surf.normals, surf.object_mask).mean())
-    best = min(_mask_ne(scene, lay, m) for m in ("None", "Th", "Hi-Re-Sh", "Th-Hi-Re-Sh"))
-    assert ne * factor <= best, (ne, best)
-    assert fit.converged[surf.object_mask].mean() >= 0.99
+    pr = _problem(scene, lay)
+    off = tsfit(pr, TsfitOptions(propagate=0))
+    on = tsfit(pr, TsfitOptions(propagate=2))
+    mask = surf.object_mask
+    assert on.info["propagated"] > 0
+    # the same fit before propagation; a pixel takes a refit only if its cost drops
+    assert (on.info["rms"][mask] <= off.info["rms"][mask] * (1 + 1e-6)).all()
+    ne_on = _errors(on.b, surf.normals, mask).mean()
+    ne_off = _errors(off.b, surf.normals, mask).mean()
+    assert ne_on < 0.97 * ne_off, (ne_on, ne_off)
 
 
 @pytest.mark.parametrize("how", ["robust weights", "Sh validity"])
@@ -201,7 +273,8 @@ def test_registered_by_entry_point():
     (dict(start="tsfit"), "start='tsfit'"), (dict(weights="x"), "weights"),
     (dict(dark_ratio=2), "dark_ratio"), (dict(dark_sigmas=-1), "dark_sigmas"),
     (dict(refine=-1), "refine"), (dict(m_sample=10), "m_sample"),
-    (dict(start_grid=-1), "start_grid"), (dict(lm_max_iter=True), "lm_max_iter")])
+    (dict(start_grid=-1), "start_grid"), (dict(lm_max_iter=True), "lm_max_iter"),
+    (dict(propagate=-1), "propagate")])
 def test_bad_options_are_one_line_errors(kw, match):
     with pytest.raises(PsbenchError, match=match) as info:
         TsfitOptions(**kw)
