@@ -236,10 +236,17 @@ def tsfit(problem, options=None) -> Fit:
         return _tsfit(problem, opt, start_name)
 
 
+#: run a fit with one BLAS thread (see :func:`_single_thread_blas`); benchmarks
+#: switch it off to measure the difference
+PIN_BLAS = True
+
+
 def _single_thread_blas():
     """One BLAS thread for the duration of a fit: tsfit's matrix products are small
     ((6, k) x (k, 4096)); a multi-threaded BLAS spends more time synchronising its
     threads than computing (measured: 4x the CPU time at 512^2 x 16 on 2 cores)."""
+    if not PIN_BLAS:
+        return contextlib.nullcontext()
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - a declared dependency
