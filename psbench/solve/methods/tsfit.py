@@ -83,13 +83,15 @@ class TsfitOptions(Options):
         Object pixels (drawn with ``seed``) on which the shared lobe is estimated;
         >= 100.
     start_grid : int
-        Candidate normals (a uniform hemisphere lattice) of the global start
-        search; each pixel starts from the best of them and the robust start. 0:
-        start from the robust solution alone.
+        Candidate normals (a uniform hemisphere lattice) of a global start search;
+        each pixel starts from the best of them and the robust start. 0 (default):
+        from the robust start alone (with the repair restarts and the neighbour
+        propagation, a 64-normal search was measured as no more accurate on the
+        rendered scenes and DiLiGenT cat and bear, and slower).
     propagate : int
         Sweeps of neighbour propagation (pixels whose normal disagrees with their
-        neighbours restart from the neighbours' normals and keep the refit if it
-        lowers their own cost); >= 0, 0: off.
+        neighbours restart from their neighbours' mean normal and keep the refit if
+        it lowers their own cost); >= 0, 0: off.
     """
 
     rho_s_mode: str = "shared"
@@ -185,20 +187,34 @@ def tsfit(problem, options=None) -> Fit:
        Gauss–Newton steps on the shared unknowns with every pixel's own unknowns
        projected out (Schur complement of the per-pixel normal equations), each
        followed by a warm-started refit and accepted only if the total cost drops.
-    3. **Global start.** Each pixel starts from the best of ``start_grid``
-       candidate normals (a hemisphere lattice; costs for all pixels at once by
-       matrix products, rho_d in closed form) and the robust start.
+    3. **Start of each pixel.** The robust start's normal, or (``start_grid`` > 0)
+       the best of it and ``start_grid`` candidate normals (a hemisphere lattice;
+       costs for all pixels at once by matrix products, rho_d in closed form);
+       rho_d (and a per-pixel rho_s) in closed form.
     4. **Per-pixel fit.** Levenberg–Marquardt on all object pixels at once: 3 to 5
        unknowns per pixel, batched normal equations solved by Cholesky, Marquardt
        damping, an active set for unknowns at their bounds. The normal moves on the
        sphere, n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent basis at the
        current n, so it stays unit and has no pole singularity. Each iteration
-       visits only the pixels not yet converged (``lm_tol``), in cache-sized chunks,
-       up to ``lm_max_iter``. Pixels whose residual ends above twice the median
-       restart from a 4x finer grid and keep the better fit.
+       visits only the pixels not yet converged (``lm_tol``; the final step below
+       it is taken without evaluating it), in cache-sized chunks, up to
+       ``lm_max_iter``; pixels are fitted in memory-bounded groups. Pixels whose
+       residual ends above twice the median restart from the best of 256
+       hemisphere normals and keep the better fit.
     5. **Refine** (``refine`` rounds): the dark observations are re-decided with
        the fitted model instead of the Lambert start, and the pixels whose weights
        changed are refitted from their solution.
+    6. **Neighbour propagation** (``propagate`` sweeps): a pixel whose normal
+       differs from the mean normal of its 8 neighbours by more than 3 times the
+       median of that difference restarts from that mean and keeps the refit if
+       it lowers its own cost (nothing is smoothed; see
+       :mod:`psbench.solve.methods._tsprop`).
+
+    Accuracy: on noisy scenes rendered with this model the fit is close to the
+    Cramér–Rao bound of a per-pixel estimator (within 4-20 % on the semisphere and
+    sombrero2 at 5 % noise, the gap at grazing normals); no per-pixel method can
+    beat that bound, only a spatial prior could. The fit runs with one BLAS
+    thread (small matrix products).
 
     Pixels with fewer than 5 observations of positive weight, or a zero start
     albedo, keep the start (rho_s = 0, flagged in ``info["kept_start"]``).
