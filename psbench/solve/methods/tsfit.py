@@ -211,10 +211,12 @@ def tsfit(problem, options=None) -> Fit:
        :mod:`psbench.solve.methods._tsprop`).
 
     Accuracy: on noisy scenes rendered with this model the fit is close to the
-    Cramér–Rao bound of a per-pixel estimator (within 4-20 % on the semisphere and
-    sombrero2 at 5 % noise, the gap at grazing normals); no per-pixel method can
-    beat that bound, only a spatial prior could. The fit runs with one BLAS
-    thread (small matrix products).
+    Cramér–Rao bound of a per-pixel estimator (measured within 3-20 % on the
+    disc-only hemisphere and sombrero2, 16 lights, 5 % noise; the gap is at grazing
+    normals); no unbiased per-pixel method can beat that bound, only a spatial
+    prior could. On real photographs and Phong-rendered scenes the model is an
+    approximation (see ``benchmarks/tsfit.py``). The fit runs with one BLAS thread
+    (small matrix products).
 
     Pixels with fewer than 5 observations of positive weight, or a zero start
     albedo, keep the start (rho_s = 0, flagged in ``info["kept_start"]``).
@@ -235,8 +237,8 @@ def tsfit(problem, options=None) -> Fit:
         fit, ``kept_start`` (H, W) bool, ``start`` (the start step used), ``sigma``
         (k,) the noise scales of the final weights (None with ``weights="mask"``),
         ``timings`` and ``cpu_timings`` (wall and CPU seconds per stage: start,
-        lobe, fit, propagate, total; CPU time is that of the whole process). Non-converged pixels keep their best
-        estimate (LM only accepts steps that lower the cost) and raise a
+        lobe, fit, propagate, total; CPU time is that of the whole process).
+        Non-converged pixels keep their best estimate (LM only accepts steps that lower the cost) and raise a
         RuntimeWarning; no NaN is ever returned.
     """
     opt = options if options is not None else TsfitOptions()
