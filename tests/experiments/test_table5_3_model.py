@@ -41,7 +41,8 @@ def test_model_part_per_noise_level_and_thesis_parts_untouched():
     assert cell("model", "Th", "ne_0")["n"].iloc[0] == 1
     assert table5_3.cell_kind("model", "ne_10") == "ne"
     v = _claims(agg, rows)
-    at = lambda p: v[f"Modelling the highlight (tsfit) beats masking it (the best mask) at {p} % noise"]  # noqa: E731
+    at = lambda p: v[f"psbench's question, not a thesis claim: modelling the highlight "  # noqa: E731
+                     f"(tsfit) beats masking it (the best mask) at {p} % noise"]
     assert at(0).status == V.SUPPORTED and "next Th 5" in at(0).detail
     assert at(10).status == V.INCONCLUSIVE       # 0.05 deg ahead of Th: below the margin
     assert at(20).status == V.NOT_SUPPORTED and "best None 16" in at(20).detail
@@ -52,5 +53,5 @@ def test_without_tsfit_runs_the_model_verdicts_are_inconclusive():
     rows = rows.drop(columns="method")           # rows stored before the method column
     agg = table5_3.aggregate(rows)
     assert (agg.part != "model").all()
-    v = [x for x in table5_3.verdicts(agg, rows) if x.claim.startswith("Modelling")]
+    v = [x for x in table5_3.verdicts(agg, rows) if "modelling the highlight" in x.claim]
     assert len(v) == 3 and all(x.status == V.INCONCLUSIVE for x in v)
