@@ -60,7 +60,7 @@ import numpy as np  # noqa: E402
 import psbench as ps  # noqa: E402
 
 MASKS = ["None", "Th", "Th-Hi-Re-Sh"]
-METHODS = ["trim", "huber", "cauchy", "tukey", "l1", "sbl", "rpca", "robust"]
+METHODS = ["trim", "huber", "cauchy", "tukey", "l1", "sbl", "rpca", "robust", "tsfit"]
 CASES = ["cat96", "cat16", "bear96", "bear16", "sombrero"]
 RIG = "30x8+60x8"
 

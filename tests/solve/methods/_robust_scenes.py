@@ -56,7 +56,7 @@ def lambert_scene(size=48, lights="30x8+60x8", zenith=28.0):
                                   base.mask)
     lay = ps.layout(lights)
     images = ps.render(surf, lay, model="lambert", shadows="self").images
-    assert (images[:, surf.mask] > 0).all()
+    assert (images[:, surf.object_mask] > 0).all()
     return surf, lay, images
 
 

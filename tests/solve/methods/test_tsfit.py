@@ -67,9 +67,9 @@ def test_noiseless_other_modes(kw):
     lay = ps.layout("30x8+60x8")
     scene = ps.render(surf, lay, model="ts", shadows="self")
     fit = tsfit(_problem(scene, lay), TsfitOptions(**kw))
-    e = _errors(fit.b, surf.normals, surf.mask)
+    e = _errors(fit.b, surf.normals, surf.object_mask)
     assert np.percentile(e, 99) < 0.1
-    m = np.median(np.asarray(fit.info["m"])[surf.mask] if np.ndim(fit.info["m"]) else fit.info["m"])
+    m = np.median(np.asarray(fit.info["m"])[surf.object_mask] if np.ndim(fit.info["m"]) else fit.info["m"])
     assert m == pytest.approx(2.0, rel=0.02)
 
 
@@ -78,7 +78,7 @@ def test_light_power_is_modelled():
     lay = ps.layout("30x8+60x8", power=np.linspace(0.6, 1.4, 16))
     scene = ps.render(surf, lay, model="ts", shadows="self", rho_s=0.5, m=4.0)
     fit = tsfit(_problem(scene, lay))
-    assert np.percentile(_errors(fit.b, surf.normals, surf.mask), 99) < 0.1
+    assert np.percentile(_errors(fit.b, surf.normals, surf.object_mask), 99) < 0.1
     assert fit.info["m"] == pytest.approx(4.0, rel=0.02)
     assert fit.info["rho_s"] == pytest.approx(0.5, rel=0.02)
 
@@ -94,10 +94,10 @@ def test_noise_beats_best_thesis_mask(name, lights, factor):
     lay = ps.layout(lights)
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=3, shadows="self")
     fit = tsfit(_problem(scene, lay))
-    ne = float(_errors(fit.b, surf.normals, surf.mask).mean())
+    ne = float(_errors(fit.b, surf.normals, surf.object_mask).mean())
     best = min(_mask_ne(scene, lay, m) for m in ("None", "Th", "Hi-Re-Sh", "Th-Hi-Re-Sh"))
     assert ne * factor <= best, (ne, best)
-    assert fit.converged[surf.mask].mean() >= 0.99
+    assert fit.converged[surf.object_mask].mean() >= 0.99
 
 
 @pytest.mark.parametrize("how", ["robust weights", "Sh validity"])
@@ -105,7 +105,7 @@ def test_cast_shadows(how):
     surf = ps.make_surface("sombrero2", size=96)
     lay = ps.layout("60x16")
     scene = ps.render(surf, lay, model="ts", noise=0.01, seed=1, shadows=True)
-    assert scene.cast_shadow[:, surf.mask].mean() > 0.01  # the scene has cast shadows
+    assert scene.cast_shadow[:, surf.object_mask].mean() > 0.01  # the scene has cast shadows
     if how == "Sh validity":
         fit = tsfit(_problem(scene, lay, mask="Sh"), TsfitOptions(weights="mask"))
         assert not (fit.valid & ~_problem(scene, lay, mask="Sh").valid).any()
@@ -115,8 +115,8 @@ def test_cast_shadows(how):
         lit = np.einsum("kc,hwc->khw", lay.S, surf.normals) > 0.3
         assert (fit.weights[scene.cast_shadow & lit] == 0).mean() > 0.9
     assert np.isfinite(fit.b).all() and np.isfinite(fit.weights).all()
-    assert fit.converged[surf.mask].mean() >= 0.99
-    ne = float(_errors(fit.b, surf.normals, surf.mask).mean())
+    assert fit.converged[surf.object_mask].mean() >= 0.99
+    ne = float(_errors(fit.b, surf.normals, surf.object_mask).mean())
     assert ne < _mask_ne(scene, lay, "Th-Hi-Re-Sh")
 
 
@@ -132,7 +132,7 @@ def test_fit_contract_and_mask_never_overridden():
     assert fit.weights.shape == (k, H, W) and fit.weights.dtype == np.float32
     assert fit.valid.shape == (k, H, W) and fit.valid.dtype == bool
     assert fit.iterations.shape == (H, W) and fit.converged.shape == (H, W)
-    assert (fit.b[~surf.mask] == 0).all()
+    assert (fit.b[~surf.object_mask] == 0).all()
     assert ((fit.weights >= 0) & (fit.weights <= 1)).all()
     assert not (fit.valid & ~pr.valid).any()  # Th's exclusions stay excluded
     assert set(fit.info) >= {"rho_s", "m", "rms", "kept_start", "start", "timings"}
@@ -145,7 +145,7 @@ def test_dark_pixels_keep_the_start_without_nan():
     images = scene.images.copy()
     images[:, 18:22, 18:22] = 0.0  # all-dark patch: albedo 0
     pr = Problem(images=images, lights=lay, valid=np.ones(images.shape, bool),
-                 object_mask=surf.mask, _start=lambda: ps.solve(images, lay).b)
+                 object_mask=surf.object_mask, _start=lambda: ps.solve(images, lay).b)
     fit = tsfit(pr)
     assert np.isfinite(fit.b).all()
     assert fit.info["kept_start"][18:22, 18:22].all()
@@ -158,8 +158,8 @@ def test_non_convergence_is_reported_and_warned():
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0)
     with pytest.warns(RuntimeWarning, match="did not converge"):
         fit = tsfit(_problem(scene, lay), TsfitOptions(lm_max_iter=1, refine=0))
-    assert (~fit.converged[surf.mask]).any()
-    assert (fit.iterations[surf.mask] >= 1).all()
+    assert (~fit.converged[surf.object_mask]).any()
+    assert (fit.iterations[surf.object_mask] >= 1).all()
     assert np.isfinite(fit.b).all()
 
 
