@@ -14,8 +14,9 @@ AVERAGES = ("Mean NE (deg) over the five surfaces (semisphere, spheres, sombrero
             "penny; TS + cast and self shadows) of each noise level and light ring; 'mean'"
             " averages the noise levels. Time: mean t_solve (s) over all scenes of the ring.")
 NOTES = ("Not a thesis table: the thesis has no robust solvers. The full scale runs at "
-         "128^2 (Table 5.3 uses 512^2); the ci scale keeps the sombrero at 32^2, where the "
-         "masks' spatial stages (Sh, SS, RA) see few pixels. Rows: masks with ordinary PS "
+         "64^2 (Table 5.3 uses 512^2; fine detail of mozart and penny is lost); the ci "
+         "scale keeps the sombrero at 32^2, where the masks' spatial stages (Sh, SS, RA) "
+         "see few pixels. Rows: masks with ordinary PS "
          "(None = least squares) and the robust methods on all observations (mask None). "
          "tsfit fits the thesis's own TS model (Eq. 2.14), the model the scenes are rendered"
          " with, so these scenes favour it; realdata shows it on photographs. Times: shared"
