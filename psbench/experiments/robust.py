@@ -130,14 +130,20 @@ def figures(agg):
     if agg is None or agg.empty:
         return []
     parts = _parts(agg)
-    fig, axes = new_figure(ncols=len(parts), w=6.0 * len(parts), h=5.0)
-    for ax, part in zip(np.atleast_1d(axes), parts):
+    fig, axes = new_figure(nrows=len(parts), w=9.0, h=4.5)
+    for ax, part in zip(np.asarray(axes).ravel(), parts):
         mean = part_values(agg, part, "mean")
         masks = sorted((k for k in mean if k in MASKS), key=mean.get)[:2]
-        for r in ["None", *masks, *ROBUST, "tsfit"]:
+        styles = {"None": dict(color="0.3", ls="--", label="None (least squares)")}
+        styles.update({m: dict(color=c, ls="--", label=f"{m} (best thesis masks)")
+                       for m, c in zip(masks, ("0.55", "0.75"))})
+        styles.update({r: dict(color="C9" if r == "robust" else f"C{i}",
+                               lw=2.5 if r == "robust" else 1.5)
+                       for i, r in enumerate(ROBUST)})
+        styles["tsfit"] = dict(color="k", lw=2.5)
+        for r, st in styles.items():
             if r in mean:
-                line(ax, agg, part, r, label=r if r != "None" else "None (least squares)",
-                     ls="--" if r in masks or r == "None" else "-")
+                line(ax, agg, part, r, **{"label": r, **st})
         finish(ax, "noise (fraction of each image's range)", "mean NE (deg)",
                part.removeprefix("NE ") + " lights", legend=False)
     figure_legend(fig)
