@@ -12,7 +12,7 @@ def _exp():
 
 def test_grid_at_ci_scale():
     runs = expand("interreflection", scale="ci")
-    assert len(runs) == 2 * 2 * 2 * 7
+    assert len(runs) == 3 * 2 * 2 * 7
     assert {r["bounces"] for r in runs} == {None, 1}
     assert {r["size"] for r in runs} == {48}
 

@@ -7,6 +7,13 @@ interreflection (``bounces``), Lambert and Torrance-Sparrow, and solves them wit
 least squares, the thesis's Th-Hi-Re-Sh, two robust solvers (``robust``, ``trim``) and
 the SR mask alone, weighted and in Th-Hi-Re-Sh-SR. ``qf_sr`` scores the observations a
 solver drops against those whose true secondary fraction exceeds ``t_sr`` (0.5).
+
+The third surface is the firing-pin impression of the synthetic cartridge case (Chapter
+7): :func:`prepare` makes the case head at 256 px (39 um a pixel, the coarsest that
+holds its features), crops the 48 x 48 px window centred on the impression (a crater
+about 37 px across with steep walls, the breech face around it) and saves its heights
+(pixel units) as ``<results>/interreflection/firing_pin.npy``; the same file serves
+every scale.
 """
 from __future__ import annotations
 
@@ -17,7 +24,8 @@ from psbench.report.aggregates import long_frame, lookup, mean
 from psbench.report.verdicts import NE_MARGIN, nodata, num, ok, verdict
 
 TITLE = "Interreflection: secondary reflections and the SR mask (Section 8.3)"
-AVERAGES = ("NE per surface, model and bounces (0: direct light only; 1: one bounce of "
+AVERAGES = ("NE per surface (cup, vgroove, firing_pin: the window of the cartridge "
+            "case), model and bounces (0: direct light only; 1: one bounce of "
             "interreflection), 30x8+60x8, cast shadows, 1 % noise; qf_sr on the bounce-1 "
             "scenes; solve time in seconds, mean over the runs of a solver.")
 NOTES = ("Not in the thesis (its Section 8.3 names the problem). SR predicts the secondary "
@@ -37,6 +45,40 @@ PART_TITLES = {"ne lambert": "NE, Lambert", "ne ts": "NE, Torrance-Sparrow",
                         "fraction > 0.5", "time": "Solve time"}
 
 
+#: side of the firing-pin window (px) and of the cartridge it is cut from
+FP_WINDOW, FP_CASE = 48, 256
+
+
+def firing_pin_path(root):
+    """Where :func:`prepare` puts the firing-pin height map."""
+    from pathlib import Path
+
+    return Path(root) / "interreflection" / "firing_pin.npy"
+
+
+def prepare(root, scale=None):
+    """Make the firing-pin height map the grid reads, once (atomic write)."""
+    from psbench._fs import atomic_write
+    from psbench.forensic.cartridge import make_cartridge
+
+    out = firing_pin_path(root)
+    if out.exists():
+        return
+    surf = make_cartridge(FP_CASE)
+    ys, xs = np.nonzero(surf.regions["firing_pin"])
+    cy, cx = int(round(ys.mean())), int(round(xs.mean()))
+    h = FP_WINDOW // 2
+    y0 = min(max(cy - h, 0), FP_CASE - FP_WINDOW)
+    x0 = min(max(cx - h, 0), FP_CASE - FP_WINDOW)
+    win = np.ascontiguousarray(surf.height[y0:y0 + FP_WINDOW, x0:x0 + FP_WINDOW], np.float32)
+    atomic_write(out, lambda fh: np.save(fh, win - win.max()))
+
+
+def _surface(s) -> str:
+    s = str(s)
+    return "firing_pin" if s.endswith("firing_pin.npy") else s
+
+
 def _solver(r) -> str:
     method = str(r.get("method") or "ps")
     if method not in ("ps", "None", "nan"):
@@ -48,6 +90,7 @@ def _solver(r) -> str:
 def _frame(rows):
     df = rows.copy()
     df["solver"] = [_solver(r) for r in df.to_dict("records")]
+    df["surface"] = df["surface"].map(_surface)
     b = pd.to_numeric(df["bounces"], errors="coerce") if "bounces" in df else 0
     df["b"] = pd.Series(b, index=df.index).fillna(0).astype(int)
     return df
@@ -121,6 +164,13 @@ def verdicts(agg, rows=None):
                  "(TS)", agg, "ne ts", "Th-Hi-Re-Sh-SR", "Th-Hi-Re-Sh", b0, better=False),
         _compare("The weighted form of SR is no worse than the binary one (Lambert, bounce "
                  "1)", agg, "ne lambert", "SR weighted", "SR", b1, better=False),
+    ]
+    fp = ["firing_pin 1"]
+    out += [
+        _compare("On the firing-pin impression with one bounce, SR beats plain least squares "
+                 "(Lambert)", agg, "ne lambert", "SR", "None", fp),
+        _compare("On the firing-pin impression with one bounce, Th-Hi-Re-Sh-SR beats "
+                 "Th-Hi-Re-Sh (TS)", agg, "ne ts", "Th-Hi-Re-Sh-SR", "Th-Hi-Re-Sh", fp),
     ]
     q = [lookup(agg, "qf_sr", "SR", c) for c in ("cup lambert", "vgroove lambert")]
     if all(ok(x) for x in q):
