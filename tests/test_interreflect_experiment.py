@@ -14,7 +14,8 @@ def test_grid_at_ci_scale():
     runs = expand("interreflection", scale="ci")
     assert len(runs) == 3 * 2 * 2 * 7
     assert {r["bounces"] for r in runs} == {None, 1}
-    assert {r["size"] for r in runs} == {48}
+    assert {r["size"] for r in runs} == {48, None}  # None: the firing-pin height file
+    assert {str(r["surface"]).endswith("firing_pin.npy") for r in runs} == {True, False}
 
 
 def _rows():

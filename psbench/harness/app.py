@@ -144,25 +144,96 @@ def _task(cfg):
     validate(params)
     sweep = st["sweep"]
     rid = run_id(params)
+    pics = _pictures_dir(cfg, root, sweep, rid, multi) if params["kind"] == "solve" else None
+    done = {"run_id": rid, "root": str(root), "sweep": sweep,
+            "out": None if pics is None else str(pics)}
     stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
     skip = stored == "ok" or (multi and stored == "failed" and not st["retry_failed"])
     if skip:
         row = read_run(root, sweep, rid)
         line = format_row(row) if row is not None else rid
         print(f"skipped (stored{', failed' if stored == 'failed' else ''}): {line}", flush=True)
-        return {"run_id": rid, "status": stored, "skipped": True}
+        if stored == "ok" and not _pictures_present(pics):
+            print(f"no pictures in {pics}/ (stored before pictures were written, or with "
+                  "outputs=none): rerun=true makes them", flush=True)
+        return {**done, "status": stored, "skipped": True}
     full = OmegaConf.to_container(cfg, resolve=True)
     full["results_dir"] = str(root)
-    row = execute(params, sweep=sweep, config={"params": params, "cfg": full})
+    kept = {}
+    with _one_line_warnings():
+        row = execute(params, sweep=sweep, config={"params": params, "cfg": full}, keep=kept)
     exc = row.pop("_exc", None)
+    note = None
+    if pics is not None and "result" in kept:          # before the row: stored => pictures
+        note = _write_pictures(cfg, pics, row, kept)
     path = write_row(root, row)
     print(f"{format_row(row)} | stored {path}", flush=True)
+    if note:
+        print(note, flush=True)
     if row["status"] != "ok":
         if not isinstance(exc, PsbenchError):      # a bug or numerical failure: show where
             print(row.get("traceback") or "", file=sys.stderr, flush=True)
         if not multi:
             _EXIT["code"] = 2 if isinstance(exc, PsbenchError) else 1
-    return {"run_id": rid, "status": row["status"], "skipped": False}
+    return {**done, "status": row["status"], "skipped": False}
+
+
+# ------------------------------------------------------------ pictures (harness/outputs.py)
+def _pictures_dir(cfg, root, sweep, rid, multi):
+    """The run's picture folder (None: ``outputs=none``); refuses a foreign folder."""
+    from . import outputs as O
+
+    st = S.coerce_settings({k: cfg.get(k) for k in ("out", "outputs")})
+    return O.run_dir(out=st["out"], outputs=st["outputs"], root=root, sweep=sweep,
+                     run_id=rid, multi=multi, cwd=_cwd())
+
+
+class _one_line_warnings:
+    """psbench's own warnings (e.g. far lights) as one ``psbench: warning: ...`` line on
+    stderr; other warnings are shown as Python shows them."""
+
+    def __enter__(self):
+        import warnings
+
+        self._cm = warnings.catch_warnings(record=True)
+        self._caught = self._cm.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        import warnings
+
+        from ..io import PsbenchWarning
+
+        self._cm.__exit__(*exc)
+        for w in self._caught:
+            if issubclass(w.category, PsbenchWarning):
+                print(f"psbench: warning: {w.message}", file=sys.stderr, flush=True)
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        return False
+
+
+def _pictures_present(pics):
+    from . import outputs as O
+
+    return O.present(pics)
+
+
+def _write_pictures(cfg, pics, row, kept):
+    """Write a run's pictures; returns the line saying where they went. Never fatal: a
+    failure is one warning line and the row is stored all the same."""
+    from . import outputs as O
+    from .run import format_row
+
+    lvl = O.level(S.coerce_settings({"outputs": cfg.get("outputs")})["outputs"])
+    try:
+        secs = O.write_run(pics, lvl=lvl, row=row, result=kept["result"],
+                           scene=kept["scene"], line=format_row(row))
+    except Exception as exc:  # noqa: BLE001 - pictures must never cost the row
+        print(f"psbench: warning: pictures not written to {pics}: {type(exc).__name__}: "
+              f"{exc}", file=sys.stderr, flush=True)
+        return None
+    return f"pictures ({lvl}, {secs:.2f} s): {pics}/"
 
 
 def _experiment(cfg, root):
