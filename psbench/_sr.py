@@ -1,4 +1,7 @@
-"""SR, the secondary-reflection normal mask (thesis Section 8.3), as pure functions.
+"""SR, the secondary-reflection normal mask (thesis Section 8.3): the prediction.
+
+The mask itself is :mod:`psbench.solve.masks.sr` (``ps.solve(..., mask="SR")``); the
+mask engine iterates it (see *Corrections* in :mod:`psbench.solve.base`).
 
 The thesis proposes "a mask working similar to the ray tracing algorithm", iterated
 inside unified PS because removing observations changes the normals and so the
@@ -15,9 +18,9 @@ traced light. psbench's SR step:
    model); on a grid of at most ``size`` pixels a side (the secondary light is
    smooth), upsampled, times the full-resolution albedo;
 3. mask the observations whose predicted secondary fraction ``f = S / I`` exceeds
-   ``t_sr`` (or weight them by ``(1 - f)^2``, the squared share of direct light), and
-   -- unless ``correct=False`` -- subtract the predicted secondary light from the
-   observations kept;
+   ``t_sr`` and -- unless ``sr_correct=False`` -- subtract the predicted secondary
+   light from the images (the weighted form, ``weighted=True``, is the engine's
+   weighted-mask step on the corrected images);
 4. re-solve, repeat until the normals stop moving.
 
 Why the subtraction: on a Lambertian concave surface the one-bounce light of a lit
@@ -27,14 +30,15 @@ pseudo-normal (a spherical cup: exactly ``rho n + kappa z``). Masking alone cann
 see it -- every lit observation agrees on the wrong normal -- and only helps where the
 secondary light dominates (shadowed observations, f = 1). The subtraction, the
 iteration of Nayar, Ikeuchi and Kanade's "shape from interreflections", removes it.
-``correct=False`` is the literal mask of the thesis, kept for comparison.
+``sr_correct=False`` is the literal mask of the thesis, kept for comparison.
 
-Limits (measured, ``benchmarks/bench_interreflect.py``): the prediction is
-Lambertian. On Torrance-Sparrow images SR alone is worse than plain least squares
-(highlights inflate the albedo it predicts from, and it over-subtracts); it needs the
-highlight masks first (``mask="Th-Hi-Re-Sh"``). On images without interreflection it
-subtracts light that is not there. ``bounces`` should match the world: a prediction
-of one bounce leaves the second uncorrected, and vice versa.
+Limits (measured: the ``interreflection`` experiment, ``benchmarks/bench_interreflect.py``):
+the prediction is Lambertian. On Torrance-Sparrow images SR alone is worse than plain
+least squares (highlights inflate the albedo it predicts from, and it over-subtracts);
+it needs the highlight masks (``mask="Th-Hi-Re-Sh-SR"``). On images without
+interreflection it subtracts light that is not there and costs accuracy.
+``sr_bounces`` should match the world: a prediction of one bounce leaves the second
+uncorrected, and vice versa.
 """
 from __future__ import annotations
 
