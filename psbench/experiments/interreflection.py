@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from psbench.report.aggregates import long_frame, lookup, mean
-from psbench.report.verdicts import NE_MARGIN, nodata, num, ok, verdict
+from psbench.report.verdicts import NE_MARGIN, nodata, num, ok, own, verdict
 
 TITLE = "Interreflection: secondary reflections and the SR mask (Section 8.3)"
 AVERAGES = ("NE per surface (cup, vgroove, firing_pin: the window of the cartridge "
@@ -147,7 +147,8 @@ def _best(agg, part, rows, cols):
 
 
 def verdicts(agg, rows=None):
-    """Where SR helps and where it does not, decided on the aggregate."""
+    """Where SR helps and where it does not, decided on the aggregate (psbench's own
+    questions, shown apart from the thesis's conclusions)."""
     b1 = ["cup 1", "vgroove 1"]
     b0 = ["cup 0", "vgroove 0"]
     out = [
@@ -187,7 +188,7 @@ def verdicts(agg, rows=None):
                            "qf_sr " + ", ".join(num(x) for x in q)))
     else:
         out.append(nodata("SR drops the observations that are mostly secondary light"))
-    return out
+    return [own(v) for v in out]  # psbench's own questions: the thesis has no numbers
 
 
 def figures(agg):
