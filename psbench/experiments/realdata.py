@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from psbench.report.aggregates import data_name, long_frame
-from psbench.report.verdicts import NE_MARGIN, lowest, nodata, num, part_values, verdict
+from psbench.report.verdicts import (NE_MARGIN, lowest, nodata, num, own_questions,
+                                     part_values, verdict)
 
 TITLE = "Real photographs: robust methods and the thesis's masks on DiLiGenT objects"
 AVERAGES = ("Mean angular error (deg) over each object's mask against its ground-truth "
@@ -211,6 +212,7 @@ def beats(claim, values, who, others, what="best of the others"):
                    undecided=abs(gap) < NE_MARGIN)
 
 
+@own_questions
 def verdicts(agg, rows=None):
     """The conclusions the real-data table supports or not, per light set and object."""
     claims = ["robust beats every thesis mask on every object (all lights)",

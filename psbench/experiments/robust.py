@@ -5,7 +5,8 @@ import numpy as np
 import pandas as pd
 
 from psbench.report.aggregates import fmt_num, long_frame
-from psbench.report.verdicts import NE_MARGIN, lowest, nodata, num, part_values, verdict
+from psbench.report.verdicts import (NE_MARGIN, lowest, nodata, num, own_questions,
+                                     part_values, verdict)
 
 from .realdata import label
 
@@ -87,6 +88,7 @@ def _every_noise(claim, agg, part, who_names, what):
     return verdict(claim, all(wins), "; ".join(details), undecided=close and not all(wins))
 
 
+@own_questions
 def verdicts(agg, rows=None):
     """Does discarding (robust solvers) or modelling (tsfit) the highlight beat masking it?"""
     first = "The best robust method beats the best thesis mask at every noise level"
