@@ -7,7 +7,7 @@ speed     render(..., bounces=1) of the cup at --size^2 x 16 lights (30x8+60x8),
           Lambert and Torrance-Sparrow, median of --repeats runs, wall and CPU time,
           ratio to the direct render (bounces=0) timed in the same run; the numpy
           fallback once (engine comparison). Target: <= 30 s at 512^2 x 16.
-sr        solve_sr at --size^2 x 16 (Lambert cup, one bounce): median wall/CPU time,
+sr        ps.solve(mask="SR") at --size^2 x 16 (Lambert cup, one bounce): median wall/CPU time,
           ratio to plain least squares and to Th-Hi-Re-Sh in the same run. Target: <= 10 s.
 accuracy  one bounce against the closed form of a Lambert spherical cap (all sizes
           and sampling densities) and against the brute-force patch sum on a V-groove.
@@ -32,13 +32,12 @@ import numpy as np
 import psbench as ps
 from psbench._interreflect import Specular, secondary
 from psbench._interreflect_ref import reference
-from psbench._sr import solve_sr
 from psbench.surfaces.cup import cup, cup_geometry
 from psbench.surfaces.vgroove import vgroove
 
 
 def _mask(s):
-    return np.asarray(s.object_mask if hasattr(s, "object_mask") else s.mask)
+    return np.asarray(s.object_mask)
 
 
 def _time(fn, repeats):
@@ -83,15 +82,14 @@ def sr(size, repeats):
     w0, c0, r0 = _time(lambda: ps.solve(scene.images, lay, object_mask=m), repeats)
     w1, c1, r1 = _time(lambda: ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh", object_mask=m),
                        repeats)
-    w2, c2, f = _time(lambda: solve_sr(scene.images, lay, object_mask=m), repeats)
-    ne = [ps.normal_error(x.normals, surf.normals, m) for x in (r0, r1, f)]
+    w2, c2, f = _time(lambda: ps.solve(scene.images, lay, mask="SR", object_mask=m), repeats)
+    ne = [ps.normal_error(x.normals, surf.normals, object_mask=m) for x in (r0, r1, f)]
     print(f"None        {w0:7.3f} s (cpu {c0:6.2f})  NE {ne[0]:6.2f}")
     print(f"Th-Hi-Re-Sh {w1:7.3f} s (cpu {c1:6.2f})  NE {ne[1]:6.2f}")
     print(f"SR          {w2:7.3f} s (cpu {c2:6.2f})  NE {ne[2]:6.2f}  rounds {f.iterations}  "
           f"{w2 / w0:.0f}x None, {w2 / w1:.1f}x Th-Hi-Re-Sh; target <= 10 s: "
           f"{'met' if w2 <= 10 else 'MISSED'}")
-    print("SR stage times (last run):",
-          {k: round(v, 2) for k, v in f.info["timings"].items()})
+    print("SR stage times (last run):", {k: round(v, 2) for k, v in f.timings.items()})
     print(_load())
 
 
@@ -153,12 +151,15 @@ def table(size):
     lay = ps.layout("30x8+60x8")
     rows = [("None", lambda im, m: ps.solve(im, lay, object_mask=m)),
             ("Th-Hi-Re-Sh", lambda im, m: ps.solve(im, lay, mask="Th-Hi-Re-Sh", object_mask=m)),
-            ("SR", lambda im, m: solve_sr(im, lay, object_mask=m)),
-            ("SR weighted", lambda im, m: solve_sr(im, lay, object_mask=m, weighted=True)),
-            ("SR mask only", lambda im, m: solve_sr(im, lay, object_mask=m, correct=False)),
-            ("SR 2 bounces", lambda im, m: solve_sr(im, lay, object_mask=m, bounces=2)),
-            ("Th-Hi-Re-Sh-SR", lambda im, m: solve_sr(im, lay, object_mask=m,
-                                                      mask="Th-Hi-Re-Sh"))]
+            ("SR", lambda im, m: ps.solve(im, lay, mask="SR", object_mask=m)),
+            ("SR weighted", lambda im, m: ps.solve(im, lay, mask="SR", object_mask=m,
+                                                   weighted=True)),
+            ("SR mask only", lambda im, m: ps.solve(im, lay, mask="SR", object_mask=m,
+                                                    sr_correct=False)),
+            ("SR 2 bounces", lambda im, m: ps.solve(im, lay, mask="SR", object_mask=m,
+                                                    sr_bounces=2)),
+            ("Th-Hi-Re-Sh-SR", lambda im, m: ps.solve(im, lay, mask="Th-Hi-Re-Sh-SR",
+                                                      object_mask=m))]
     head = f"{'surface':8s} {'model':8s} {'bounces':>7s} | " + " | ".join(
         f"{n:>15s}" for n, _ in rows)
     print(head)
@@ -174,7 +175,7 @@ def table(size):
                     t = time.perf_counter()
                     r = fn(scene.images, m)
                     t = time.perf_counter() - t
-                    cells.append(f"{ps.normal_error(r.normals, surf.normals, m):6.2f} {t:6.1f}s")
+                    cells.append(f"{ps.normal_error(r.normals, surf.normals, object_mask=m):6.2f} {t:6.1f}s")
                 print(f"{surf.name:8s} {model:8s} {b:7d} | " + " | ".join(f"{c:>15s}" for c in cells)
                       + f"   (mean secondary fraction {frac:.3f})", flush=True)
     print("cells: mean NE in degrees, solve time;", _load())

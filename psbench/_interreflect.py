@@ -67,8 +67,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import PsbenchError
+from ._interreflect_lobe import lobe as _lobe
 
-__all__ = ["secondary", "render_bounces", "Specular", "directions", "DEFAULT_SAMPLES", "MODELS"]
+__all__ = ["secondary", "add_bounces", "Specular", "directions", "DEFAULT_SAMPLES", "MODELS"]
 
 #: azimuths of the default direction set (24 x 16 bins on the sphere)
 DEFAULT_SAMPLES = 24
@@ -188,19 +189,6 @@ def _combine(acc_cos, acc_spec, rho_d, specular):
         rs = specular.rho_s
         out += acc_spec * (np.float32(rs) if np.ndim(rs) == 0 else np.asarray(rs, np.float32)[None])
     return out
-
-
-def _lobe(model, c, m, phong_m):
-    """Specular lobe from c = n.h (TS) or c = r.v (Phong), in place on float32 c."""
-    if model == "ts":
-        np.clip(c, -1.0, 1.0, out=c)
-        np.arccos(c, out=c)
-        c *= np.float32(m)
-        np.square(c, out=c)
-        np.negative(c, out=c)
-        return np.exp(c, out=c)
-    np.maximum(c, 0.0, out=c)
-    return np.power(c, np.float32(phong_m), out=c)
 
 
 def _max_slope(h):
@@ -408,7 +396,7 @@ def _kernel():
 
 
 def check_bounces(samples, positions, perspective, shadows):
-    """Refuse what :func:`render_bounces` does not model (called by ``render``)."""
+    """Refuse what :func:`add_bounces` does not model (called by ``render``)."""
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 4:
         raise PsbenchError(f"bounce_samples must be an integer >= 4, got {samples!r}")
     if positions is not None:
@@ -421,25 +409,19 @@ def check_bounces(samples, positions, perspective, shadows):
                            "negative light has no interreflection)")
 
 
-def render_bounces(surface, lights, *, bounces, samples, model, shadows, noise, seed, rho_d,
-                   rho_s, m, phong_m, quantize, highlight_kw, shadow_bias):
-    """:func:`psbench.render` with interreflections (arguments validated there).
+def add_bounces(scene, height, mask, normals, *, bounces, samples, noise, seed, model, rho_d,
+                rho_s, m, phong_m):
+    """Add interreflections to a noiseless, unquantised direct ``scene`` of
+    :func:`psbench.render` (arguments validated there; it quantises afterwards).
 
-    The direct scene is rendered noiseless, the secondary light is added, then noise
-    and quantisation follow exactly :func:`psbench.render`'s rules (same seed, same
-    draws; sigma relative to the range of the clean image *with* secondary light).
-    Ground truth ``highlight``/``self_shadow``/``cast_shadow`` stays that of the
-    direct light; ``secondary_fraction`` = secondary / clean total (0 where the
-    total is 0).
+    The secondary light is added to the clean direct images, then noise follows
+    exactly :func:`psbench.render`'s rule (same seed, same draws; sigma relative to
+    the range of the clean image *with* secondary light). Ground truth
+    ``highlight``/``self_shadow``/``cast_shadow`` stays that of the direct light;
+    ``secondary_fraction`` = secondary / clean total (0 where the total is 0).
     """
     from dataclasses import replace
 
-    from .render import _quantize, _surface, render
-
-    scene = render(surface, lights, model=model, shadows=shadows, noise=0.0, seed=seed,
-                   rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m, quantize=None,
-                   shadow_bias=shadow_bias, **highlight_kw)
-    height, mask, normals = _surface(surface)
     lay = scene.lights
     images = scene.images  # clean direct light, ours to modify
     spec = None
@@ -475,10 +457,8 @@ def render_bounces(surface, lights, *, bounces, samples, model, shadows, noise, 
             if not full:
                 z *= mask
             img += z
-    if quantize is not None:
-        _quantize(images, mask, quantize)
     out = replace(scene, images=images, noise=float(noise), sigma=sigma, dynamic_range=drange,
-                  quantize=quantize, bounces=int(bounces), _cache={})
+                  bounces=int(bounces), _cache={})
     out._cache["secondary"] = sec
     out._cache["secondary_fraction"] = frac
     return out

@@ -139,12 +139,12 @@ def chunk(occ, org, nrm, recv, f0, f1, ft, E, lit, hv, sdirs, emit_model, etab, 
                 top += 1
 
 
-@njit(parallel=True, fastmath=True, cache=True)
+@njit(fastmath=True, cache=True)
 def backmap(A, brho, bjf, bt, ja, jb, acc):  # pragma: no cover - compiled
     """acc[p] += A at the working position (brho[p], bjf[p] + bt[p]) of every pixel p
     whose left neighbour column lies in [ja, jb - 1); A (L, nc, k), acc (N, k)."""
     k = A.shape[2]
-    for p in prange(brho.shape[0]):
+    for p in range(brho.shape[0]):
         j = bjf[p]
         if j < ja or j >= jb - 1:
             continue

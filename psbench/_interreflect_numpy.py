@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from ._interreflect import _lobe
+from ._interreflect_lobe import lobe as _lobe
 
 __all__ = ["run"]
 

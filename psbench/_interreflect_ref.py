@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._interreflect import _lobe
+from ._interreflect_lobe import lobe as _lobe
 
 __all__ = ["reference"]
 

@@ -351,16 +351,20 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     if isinstance(bounces, (bool, np.bool_)) or not isinstance(bounces, (int, np.integer)) \
             or bounces not in (0, 1, 2):
         raise PsbenchError(f"bounces must be 0, 1 or 2, got {bounces!r}")
-    if bounces:  # interreflections: a separate, self-contained path
-        from ._interreflect import check_bounces, render_bounces
+    if bounces:  # interreflections: the noiseless direct scene, then the secondary light
+        from ._interreflect import add_bounces, check_bounces
         check_bounces(bounce_samples, pos, perspective, shadows)
-        return render_bounces(surface, lay, bounces=int(bounces), samples=int(bounce_samples),
-                              model=model, shadows=shadows, noise=noise, seed=seed,
-                              rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m, quantize=quantize,
-                              highlight_kw=dict(highlight=highlight,
-                                                highlight_angle=highlight_angle,
-                                                highlight_fraction=highlight_fraction),
-                              shadow_bias=shadow_bias)
+        scene = render(surface, lay, model=model, shadows=shadows, noise=0.0, seed=seed,
+                       rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m,
+                       highlight=highlight, highlight_angle=highlight_angle,
+                       highlight_fraction=highlight_fraction, shadow_bias=shadow_bias)
+        scene = add_bounces(scene, height, mask, normals, bounces=int(bounces),
+                            samples=int(bounce_samples), noise=noise, seed=seed, model=model,
+                            rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m)
+        if quantize is not None:
+            _quantize(scene.images, mask, quantize)
+            scene.quantize = quantize
+        return scene
 
     shader = Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
                     pos, bool(falloff), perspective,

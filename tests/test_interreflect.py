@@ -171,7 +171,7 @@ def test_occlusion_ridge_blocks_light():
 @pytest.mark.skipif(len(ENGINES) < 2, reason="numba is not installed")
 @pytest.mark.parametrize("model", ["lambert", "ts", "phong"])
 def test_numba_and_numpy_engines_agree(model):
-    surf = ps.make_surface("mozart", 48)
+    surf = ps.make_surface("mozart", size=48)
     m = _mask(surf)
     lay = ps.layout("30x4+60x4")
     d = ps.render(surf, lay, model=model)

@@ -43,7 +43,8 @@ figures (printed row and store columns):
       images' mean dynamic range; ie_weighted the ring-weighted IE of WPS (Eq. 2.30).
   QF  quality factor of a mask, 0-1: TP / (TP + FP + FN) of the observations it drops
       against the true highlights (qf_hi), shadows (qf_sh) and both (qf_total); 1 = exact
-      (Eq. 2.32; rendered scenes only).
+      (Eq. 2.32; rendered scenes only); qf_sr against the observations whose true
+      secondary fraction exceeds t_sr (scenes rendered with bounces > 0).
   times in seconds: render (or read) the images, solve, total.
 """
 

@@ -111,7 +111,7 @@ class _Scene:
             surf = surface_from_file(s) if os.path.isabs(s) else make_surface(s, size=p["size"])
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"])
+                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)
             self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
@@ -246,7 +246,22 @@ def _solve_metrics(p, sc, keep=None):
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):
         qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, object_mask=sc.mask)
         row.update(qf_hi=_f(qf["hi"]), qf_sh=_f(qf["sh"]), qf_total=_f(qf["total"]))
+        if getattr(sc.truth, "bounces", 0):  # secondary light: the SR mask's truth
+            row["qf_sr"] = _f(_qf_sr(res, sc))
     return row
+
+
+def _qf_sr(res, sc):
+    """QF of the masked observations against those whose true secondary fraction
+    exceeds t_sr (the observations SR is meant to mask)."""
+    from ..metrics import quality_factor
+
+    t = float(res.thresholds.get("t_sr", 0.5))
+    pos = np.asarray(sc.truth.secondary_fraction) > t
+    none = np.zeros_like(pos)
+    qf = quality_factor(~np.asarray(res.valid, dtype=bool),
+                        {"highlight": pos, "shadow": none}, object_mask=sc.mask)
+    return qf["hi"]
 
 
 def _analysis(p):

@@ -9,7 +9,9 @@ One row per run. Column groups:
   shadows, False otherwise (render's "self" and "none"; the exact value is in
   ``config``); mappings and lists (``options``, ``thresholds``, ``args``, ``extras``)
   are json text with sorted keys, null when empty;
-- metrics (:data:`METRIC_COLUMNS`), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
+- metrics (:data:`METRIC_COLUMNS`), ``qf_sr`` the QF of the masked observations
+  against those of true secondary fraction above ``t_sr`` (scenes rendered with
+  ``bounces`` > 0), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
   ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
   0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
@@ -52,6 +54,7 @@ _METRICS = [
     ("qf_hi", pa.float64()),
     ("qf_sh", pa.float64()),
     ("qf_total", pa.float64()),
+    ("qf_sr", pa.float64()),
     ("cond", pa.float64()),
     ("t_render", pa.float64()),
     ("t_solve", pa.float64()),

@@ -249,6 +249,15 @@ def _size(value, ctx):
     return None if _is_path(ctx["out"]["surface"]) else as_int(value, "size")
 
 
+def _bounces(value, ctx):
+    """0 is stored as None (the default): the ids of runs stored before ``bounces``
+    existed, and of the kinds and data runs that do not render, stay unchanged."""
+    v = None if value is None else as_int(value, "bounces")
+    if v not in (None, 0, 1, 2):
+        raise PsbenchError(f"bounces must be 0, 1 or 2, got {value!r}")
+    return v or None
+
+
 def _options(value, ctx):
     """Method options: a mapping checked by the method's options class; values equal
     to the class's defaults are dropped (``options.max_iter=10`` is the default run)."""
@@ -299,6 +308,10 @@ PARAMS: tuple[Param, ...] = (
           "dynamic range", kinds=_RUN, synthetic=True, scene=True, metavar="FRACTION"),
     Param("quantize", "int", None, "quantize the images to this many bits (null: float)",
           nullable=True, kinds=_RUN, synthetic=True, scene=True, metavar="BITS"),
+    Param("bounces", "int", None, "interreflection bounces rendered (null or 0: direct light "
+          "only; 1 or 2: secondary light, ground truth secondary_fraction)", nullable=True,
+          kinds=_RUN, synthetic=True, scene=True, hashed="unless_default", normalize=_bounces,
+          metavar="0|1|2"),
     Param("size", "int", 512, "image side in pixels (named surfaces)", kinds=_RUN,
           synthetic=True, scene=True, normalize=_size, metavar="PIXELS"),
     Param("mask", "str", "Th", "mask expression: mask names joined by '-' (Th-Hi-Re-Sh); None: "

@@ -12,6 +12,11 @@ ring, by WPS (through ``Problem.engine``).
    changed; global masks (Sh) are re-evaluated on every pixel each round.
 4. **method**, then the **weighted-mask step** (Eq. 3.19) when ``weighted``.
 
+A global normal mask may also return a correction of the images (SR: the predicted
+secondary light); the engine then solves, masks, completes and weights the corrected
+images ``images - correction`` (contract and stopping rule: *Corrections* in
+:mod:`psbench.solve.base`). Without corrections nothing of this path runs.
+
 Before every PS solve Eq. 3.1's rule is applied: where fewer than three observations
 are valid the masked ones with the least residual of the *unmasked* least-squares
 solution are added back until three are used
@@ -79,10 +84,14 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
     ne = [] if truth is not None else None
     name = "-".join(tokens) if tokens else "None"
     rounds, changed = 0, []
+    work = images  # the images solved: the corrected ones when a mask corrects them
     if masked:
-        b, valid, rounds, conv, changed = _masked_ps(ctx, specs, timer, truth, ne)
+        b, valid, rounds, conv, changed, corr = _masked_ps(ctx, specs, timer, truth, ne)
         if conv is not None:
             info["converged"] = conv
+        if corr is not None:
+            work = corr.pop("images")
+            info.update(corr)
     else:
         b, valid = None, np.broadcast_to(np.True_, images.shape)
     if method is None:
@@ -96,7 +105,7 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
                        truth=truth_normals, masks=masks)
 
         scale = ctx.scale if ctx.ranges is not None else (lambda: _measure(ctx)["scale"])
-        problem = Problem(images, lights, valid, object_mask, mask=name, thresholds=thresholds,
+        problem = Problem(work, lights, valid, object_mask, mask=name, thresholds=thresholds,
                           scale=scale, seed=seed, truth_normals=truth, _start=b, engine=engine)
         fit = method.func(problem, options)
         timer.lap(method.name)
@@ -112,13 +121,16 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         smin = options.sigma_min if options.sigma_min is not None else 0.01 * ctx.scale
         out = weights if (weights is not None and weights.dtype == np.float32
                           and weights.shape == images.shape) else None
-        weights = weighted_masks(images, ctx.S, b, valid, sigma_min=smin, out=out,
+        weights = weighted_masks(work, ctx.S, b, valid, sigma_min=smin, out=out,
                                  dilate_radius=options.dilate_radius,
                                  smooth_sigma=options.smooth_sigma,
                                  kernel_size=options.kernel_size)
         timer.lap("weights")
-        b = kernel.wls(images, ctx.S, weights)
+        b = kernel.wls(work, ctx.S, weights)
         timer.lap("weighted_ps")
+    residual = fit.residual
+    if residual is None and work is not images:  # the residual of the images solved
+        residual = kernel.residual_norm(work, b, ctx.S32, None if valid.all() else valid)
     extra = fit.info.get("warnings") or []
     info.update({key: v for key, v in fit.info.items() if key != "warnings"})
     info["warnings"].extend(w for w in extra if w not in info["warnings"])
@@ -130,7 +142,7 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
                   iterations=rounds if normal else int(np.max(fit.iterations, initial=0)),
                   info=info,
                   want_height=want_height, truth=truth, ne=ne, plain=plain,
-                  residual=fit.residual, ring_weights=fit.ring_weights, fields=fit.fields,
+                  residual=residual, ring_weights=fit.ring_weights, fields=fit.fields,
                   result_type=fit.result_type, converged=info.get("converged", fit.converged))
 
 
@@ -155,20 +167,22 @@ def _and(a, b):
 
 
 def _masked_ps(ctx, specs, timer, truth, ne):
-    """Steps 3-6 of Fig. 3.1 -> (b, valid, rounds, converged or None, changed)."""
+    """Steps 3-6 of Fig. 3.1 -> (b, valid, rounds, converged or None, changed, corr);
+    ``corr`` is None, or (a mask corrected the images) a dict of ``images`` (the
+    corrected images solved), ``correction`` and ``change`` (see :func:`_rounds`)."""
     images = ctx.images
     k, H, W = images.shape
     fusing = [s for s in specs if s.fuses]
     if fusing:
         b, valid = fusing[0].func(images, ctx)
         timer.lap("subsets")
-        return b, valid, 0, None, []
+        return b, valid, 0, None, [], None
     if not specs:
         b = kernel.ls(images, ctx.S)
         timer.lap("ps")
         if truth is not None:
             ne.append(mean_error(kernel.split(b)[0], truth, ctx.object_mask))
-        return b, np.ones((k, H, W), dtype=bool), 0, None, []
+        return b, np.ones((k, H, W), dtype=bool), 0, None, [], None
     valid_img = None
     for stage, lap in (("subset", "subsets"), ("image", "image_masks")):
         for s in specs:
@@ -186,8 +200,9 @@ def _masked_ps(ctx, specs, timer, truth, ne):
         ne.append(mean_error(kernel.split(b)[0], truth, ctx.object_mask))
     normal = [s for s in specs if s.stage == "normal"]
     if normal and ctx.options.max_iter > 0:
-        return _rounds(ctx, b, valid, valid_img, normal, completer, timer, truth, ne)
-    return b, valid, 0, None, []
+        pre = [s for s in specs if s.stage in ("subset", "image")]
+        return _rounds(ctx, b, valid, valid_img, normal, pre, completer, timer, truth, ne)
+    return b, valid, 0, None, [], None
 
 
 def _local(specs, images, b, ctx, pixels):
@@ -201,15 +216,19 @@ def _local(specs, images, b, ctx, pixels):
     return v
 
 
-def _rounds(ctx, b, valid, valid_img, normal, completer, timer, truth, ne):
+def _rounds(ctx, b, valid, valid_img, normal, pre, completer, timer, truth, ne):
     """PS <-> normal masks until the valid masks stop changing (or repeat an earlier
     state: a cycle), a round changes at most ``iter_tol`` of the object pixels, or
-    ``max_iter`` rounds."""
+    ``max_iter`` rounds. When a global mask returns a correction, the rounds solve the
+    corrected images, the image and subset masks ``pre`` judge them anew each round,
+    and the rounds also wait for the normals to settle (``correct_tol``)."""
     images, o = ctx.images, ctx.options
     k, H, W = images.shape
     local = [s for s in normal if s.local]
     glob = [s for s in normal if not s.local]
     flat_img = images.reshape(k, -1)
+    work = flat_img  # the images solved (corrected ones once a mask corrects them)
+    corr = None  # the correction path's record (None: no mask returned a correction)
     flat_b = b.reshape(-1, 3)  # view into b
     flat_valid = valid.reshape(k, -1)
     if np.shares_memory(flat_valid, valid_img):
@@ -220,25 +239,47 @@ def _rounds(ctx, b, valid, valid_img, normal, completer, timer, truth, ne):
     changed = []
     converged = False
     seen = {_digest(flat_valid)}  # states already visited (cycle detection)
-    tol_pix = float(o.iter_tol) * int(ctx.object_mask.sum())
+    n_obj = int(ctx.object_mask.sum())
+    tol_pix = float(o.iter_tol) * n_obj
     it = 0
     for it in range(1, o.max_iter + 1):
         if local:
             if active is None:
-                lv = _local(local, flat_img, flat_b, ctx, None)
+                lv = _local(local, work, flat_b, ctx, None)
             elif active.size:
-                lv[:, active] = _local(local, flat_img[:, active], flat_b[active], ctx, active)
+                lv[:, active] = _local(local, work[:, active], flat_b[active], ctx, active)
+        fix, moved = None, None  # this round's correction, pixels whose images it changed
         if glob:
             timer.lap("normal_masks")
             ctx.cache.clear()
             ctx.pixels = None
             new = None
+            seen_imgs = images if corr is None else work.reshape(k, H, W)
             for s in glob:
-                v = s.func(images, b, ctx).reshape(k, -1)
+                v = s.func(seen_imgs, b, ctx)
+                if isinstance(v, tuple):  # (valid, correction): see base.py, Corrections
+                    v, c = v
+                    if c is not None:
+                        if np.shape(c) != images.shape:
+                            raise PsbenchError(f"mask {s.name}: correction must have shape "
+                                             f"{images.shape}, got {np.shape(c)}")
+                        fix = c if fix is None else fix + c
+                v = v.reshape(k, -1)
                 timer.lap(s.name.lower())
                 new = v if new is None else _and(new, v)
             if lv is not None:
                 new &= lv
+            if fix is not None or corr is not None:  # solve images - correction from now on
+                if corr is None:
+                    corr = {"change": [], "correction": None}
+                J = flat_img if fix is None else flat_img - fix.reshape(k, -1)
+                moved = (J != work).any(axis=0)
+                work = J
+                corr["correction"] = fix
+                completer = _Completer(J.reshape(k, H, W), ctx.S)
+                if pre:
+                    flat_vimg = _judge(pre, J.reshape(k, H, W), ctx).reshape(k, -1)
+                    timer.lap("image_masks")
             new &= flat_vimg
             cols = None
         elif active is None:
@@ -250,36 +291,79 @@ def _rounds(ctx, b, valid, valid_img, normal, completer, timer, truth, ne):
         completer(new, cols)
         timer.lap("normal_masks")
         if cols is None:
-            idx = np.flatnonzero((new != flat_valid).any(axis=0))
+            diff = (new != flat_valid).any(axis=0)
+            n_changed = int(np.count_nonzero(diff))
+            if moved is not None:
+                diff |= moved
+            idx = np.flatnonzero(diff)
             new = new[:, idx]
         else:
             diff = (new != flat_valid[:, cols]).any(axis=0)
             idx = cols[diff]
             new = new[:, diff]
-        changed.append(int(idx.size))
+            n_changed = int(idx.size)
+        changed.append(n_changed)
         if idx.size == 0:
             converged = True
             it -= 1
             break
         old = flat_valid[:, idx].copy()
         flat_valid[:, idx] = new
-        key = _digest(flat_valid)
-        if key in seen:
-            # the masks returned to a state of an earlier round: keep the previous state
-            flat_valid[:, idx] = old
-            converged = "cycle"
-            it -= 1
-            break
-        seen.add(key)
-        flat_b[idx] = kernel.wls(flat_img[:, idx][:, None, :], ctx.S, new[:, None, :]).reshape(-1, 3)
+        if corr is None:
+            key = _digest(flat_valid)
+            if key in seen:
+                # the masks returned to a state of an earlier round: keep the previous state
+                flat_valid[:, idx] = old
+                converged = "cycle"
+                it -= 1
+                break
+            seen.add(key)
+        b_old = flat_b[idx].copy() if corr is not None else None
+        flat_b[idx] = kernel.wls(work[:, idx][:, None, :], ctx.S, new[:, None, :]).reshape(-1, 3)
         active = idx
         timer.lap("ps_iter")
         if truth is not None:
             ne.append(mean_error(kernel.split(b)[0], truth, ctx.object_mask))
-        if idx.size <= tol_pix:
+        if corr is not None:
+            inside = ctx.object_mask.reshape(-1)[idx]
+            change = _angles(b_old[inside], flat_b[idx][inside]).sum() / max(n_obj, 1)
+            corr["change"].append(float(change))
+            if n_changed <= tol_pix and change < o.correct_tol:
+                converged = True if n_changed == 0 else "tol"
+                break
+        elif idx.size <= tol_pix:
             converged = "tol"
             break
-    return b, flat_valid.reshape(k, H, W), it, converged, changed
+    out = None
+    if corr is not None:
+        fix = corr["correction"]
+        out = {"images": work.reshape(k, H, W), "change": corr["change"],
+               "correction": np.zeros_like(images) if fix is None else fix}
+    return b, flat_valid.reshape(k, H, W), it, converged, changed, out
+
+
+def _judge(pre, images, ctx):
+    """The image and subset masks on corrected images (ranges measured on them when the
+    solve measures ranges): AND of their validities, (k, H, W) bool."""
+    ctx.cache.clear()
+    if ctx.ranges is not None:
+        o = ctx.options
+        ctx.ranges = ranges(images, scope=o.th_scope, object_mask=ctx.region,
+                            offset=bool(o.th_offset))
+        ctx._flat = None
+    valid = None
+    for s in pre:
+        v = s.func(images, ctx)
+        valid = v if valid is None else _and(valid, v)
+    return valid
+
+
+def _angles(b0, b1):
+    """Angles (degrees, float64) between the rows of two (n, 3) arrays of rho n."""
+    n0 = np.linalg.norm(b0, axis=1)
+    n1 = np.linalg.norm(b1, axis=1)
+    c = np.einsum("ij,ij->i", b0, b1, dtype=np.float64) / np.maximum(n0 * n1, 1e-30)
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 def _digest(valid):

@@ -37,6 +37,11 @@ stage                    contract
                          (k, H, W), b (H, W, 3), valid (k, H, W); evaluated on every
                          pixel each round (``local=False``: Sh, which integrates the
                          normals into heights)
+``"normal"``, global,    ``func(images, b, ctx) -> (valid, correction)``: also a
+corrects                 per-observation **correction** (k, H, W) float32 (or None:
+                         nothing to correct this round), light the images hold that
+                         the Lambert model does not explain (SR: the predicted
+                         secondary light); see *Corrections* below
 =======================  ==============================================================
 
 Validities are ANDed; where fewer than three observations remain, Eq. 3.1 adds back
@@ -46,7 +51,37 @@ with ``solve(..., thresholds={name: value})``); a mask that reads ``ctx.ranges``
 ``ctx.scale`` declares ``ranges=True`` (a local normal mask reads them through
 ``ctx.flat_ranges()``, shaped for its flat arrays). ``ctx.cache`` is emptied before each stage
 evaluation: masks of one evaluation share work through it (Hi and CS share one
-Lambert residual).
+Lambert residual); ``ctx.state`` lives for the whole solve (a mask that iterates keeps
+its own state across rounds under its name).
+
+Corrections
+-----------
+Masking cannot remove an error every observation shares (Lambertian interreflection
+adds light to each lit observation that is linear in the light direction: the lit
+observations agree on a wrong normal). A global normal mask may therefore also return
+a correction ``c`` (k, H, W) float32 (the tuple form above). The engine then works on
+the **corrected images** ``J = images - c`` (the corrections of several masks add up):
+
+* every mask judges the corrected images: in each round, as soon as the correction is
+  known, the image and subset masks are evaluated again on ``J`` (with the dynamic
+  ranges ``ctx.ranges`` measured again on ``J`` when the solve measures ranges); the
+  local normal masks of the next round see ``J`` with the solution computed from it;
+  a global mask's ``images`` argument is ``J`` of the previous round (the input images
+  in the first round); ``ctx.images`` stays the input images (a correcting mask
+  compares its correction with the observations there);
+* the PS solves, Eq. 3.1's completion (its residual order recomputed on ``J``), the
+  method (``Problem.images`` is ``J``), the weighted-mask step and ``Result.residual``
+  use ``J``;
+* each round returns a new correction (not an increment): ``J = images - c`` is
+  recomputed from the input images, and pixels whose ``J`` changed are solved again;
+* the rounds stop when the valid masks change at no more than ``iter_tol`` of the
+  object pixels **and** the mean normal change of the round is below ``correct_tol``
+  degrees (or after ``max_iter`` rounds); no cycle detection (the corrections are
+  real-valued). ``Result.info`` holds ``correction`` (the last one, (k, H, W)
+  float32) and ``change`` (mean normal change per round, degrees).
+
+A mask that returns a plain validity never enters this path: without corrections the
+engine runs exactly as before.
 
 Methods
 -------
@@ -185,6 +220,27 @@ class Options:
     dilate_radius, smooth_sigma, kernel_size, sigma_min
         Weighted-mask parameters (disk radius 7, Gaussian sigma 3, 15x15 kernels,
         sigma_min None = 1 % of the mean dynamic range).
+    correct_tol : float
+        With a correcting mask (SR, see *Corrections* in :mod:`psbench.solve.base`):
+        stop only once a round moves the normals by less than this mean angle,
+        degrees; >= 0.
+    sr_samples : int
+        SR: azimuths of the ray-casting quadrature (>= 4); the rounds in which the
+        normals still move by more than 1 degree use half of them.
+    sr_size : int or None
+        SR: largest side of the prediction grid, pixels (>= 8; block means; the
+        secondary light is smooth); None: full resolution.
+    sr_damp : float
+        SR: relaxation in [0, 1): from the second round on the correction is
+        ``(1 - sr_damp) new + sr_damp previous`` (the fixed-point iteration can
+        oscillate).
+    sr_correct : bool
+        SR: subtract the predicted secondary light (False: the thesis's mask alone).
+    sr_bounces : {1, 2}
+        SR: bounces of light predicted.
+    sr_source : {"model", "images"}
+        SR: emitters of the prediction: the predicted direct Lambert light, or the
+        observed images (see :func:`psbench._sr.predict`).
     """
 
     max_iter: int = 10
@@ -199,6 +255,13 @@ class Options:
     smooth_sigma: float = 3.0
     kernel_size: int = 15
     sigma_min: float | None = None
+    correct_tol: float = 0.02
+    sr_samples: int = 24
+    sr_size: int | None = 128
+    sr_damp: float = 0.5
+    sr_correct: bool = True
+    sr_bounces: int = 1
+    sr_source: str = "model"
 
     #: the method reads ``problem.scale``: measure the ranges before the masks
     needs_ranges: ClassVar[bool] = False
@@ -219,6 +282,14 @@ class Options:
             raise PsbenchError(f"kernel_size must be odd and >= 1, got {self.kernel_size!r}")
         check_number(self.smooth_sigma, "smooth_sigma", lo=0)
         check_number(self.sigma_min, "sigma_min", lo=0, lo_open=True, allow_none=True)
+        check_number(self.correct_tol, "correct_tol", lo=0)
+        check_int(self.sr_samples, "sr_samples", lo=4)
+        if self.sr_size is not None:
+            check_int(self.sr_size, "sr_size", lo=8)
+        check_number(self.sr_damp, "sr_damp", lo=0, hi=1, hi_open=True)
+        check_bool(self.sr_correct, "sr_correct")
+        check_int(self.sr_bounces, "sr_bounces", lo=1, hi=2)
+        check_choice(self.sr_source, ("model", "images"), "sr_source")
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -366,6 +437,9 @@ class Context:
     cache : dict
         Emptied by the engine before each stage evaluation; shared by the masks of one
         evaluation.
+    state : dict
+        Kept for the whole solve: a mask that iterates (SR) keeps its state across
+        rounds here, under its name.
     pixels : (n,) int array or None
         Local normal stage: flat pixel indices of the columns passed (None: all).
     warnings : list of str
@@ -381,6 +455,7 @@ class Context:
     seed: int = 0
     ranges: dict | None = None
     cache: dict = field(default_factory=dict)
+    state: dict = field(default_factory=dict)
     pixels: np.ndarray | None = None
     warnings: list = field(default_factory=list)
 

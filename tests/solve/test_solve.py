@@ -59,7 +59,7 @@ def test_mask_names_and_canonical_form(scene):
     assert a.mask == b.mask == "Th-Hi"
     assert np.array_equal(a.valid, b.valid)
     assert solve(sc.images, lay, mask=None).mask == "None"
-    assert set(MASKS) == {"None", "Th", "NL", "xNL", "SS", "Re", "CS", "Hi", "Sh", "CJ", "RA"}
+    assert set(MASKS) == {"None", "Th", "NL", "xNL", "SS", "Re", "CS", "Hi", "Sh", "CJ", "RA", "SR"}
 
 
 def test_combination_is_and_of_image_masks(scene):
