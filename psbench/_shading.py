@@ -11,6 +11,13 @@ import numpy as np
 
 from ._checks import PsbenchError, choice
 
+#: ground-truth highlight definitions (see :func:`render`, ``highlight``)
+HIGHLIGHT_RULES = ("cone", "range")
+#: default half-angle (degrees) of the reflection cone of ``highlight="cone"``
+HIGHLIGHT_ANGLE = 12.0
+#: default fraction of the image range of ``highlight="range"``
+HIGHLIGHT_FRACTION = 0.1
+
 __all__ = ["Shader", "highlight_plane", "highlight_rule", "highlight_truth"]
 
 
@@ -191,7 +198,6 @@ def highlight_truth(shader, dark, drange, *, cos_t=None, fraction=None):
 def highlight_rule(highlight, angle, fraction):
     """(rule, angle or None, fraction or None) of render's ground-truth highlight options
     (validated; defaults :data:`psbench.render.HIGHLIGHT_ANGLE` / ``HIGHLIGHT_FRACTION``)."""
-    from .render import HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, _nonneg, _positive
     if highlight is None:
         highlight = "range" if fraction is not None else "cone"
     rule = choice(highlight, HIGHLIGHT_RULES, "highlight")
@@ -208,3 +214,23 @@ def highlight_rule(highlight, angle, fraction):
                            "highlight='range' takes highlight_fraction")
     f = HIGHLIGHT_FRACTION if fraction is None else _nonneg(fraction, "highlight_fraction")
     return rule, None, float(f)
+
+
+def _nonneg(value, name):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"{name} must be a number >= 0, got {value!r}") from None
+    if not np.isfinite(v) or v < 0:
+        raise PsbenchError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v
+
+
+def _positive(value, name):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"{name} must be a number > 0, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise PsbenchError(f"{name} must be a finite number > 0, got {value!r}")
+    return v

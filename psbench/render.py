@@ -27,7 +27,9 @@ import numpy as np
 from ._checks import PsbenchError, choice
 from ._deprecate import warn_renamed
 from .lights import Layout, layout
-from ._shading import Shader, highlight_plane, highlight_rule as _highlight_rule, highlight_truth
+from ._shading import (HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, Shader, _nonneg,
+                       _positive, highlight_plane, highlight_truth)
+from ._shading import highlight_rule as _highlight_rule
 from .shadowmap import point_shadow_map, shadow_map
 
 __all__ = ["render", "Scene", "MODELS", "SHADOWS", "HIGHLIGHT_RULES", "HIGHLIGHT_ANGLE",
@@ -39,12 +41,6 @@ MODELS = ("lambert", "phong", "ts")
 SHADOWS = (True, False, "all", "self", "none")
 #: quantisation bit depths accepted by ``quantize``
 QUANTIZE_BITS = tuple(range(1, 17))
-#: ground-truth highlight definitions (see :func:`render`, ``highlight``)
-HIGHLIGHT_RULES = ("cone", "range")
-#: default half-angle (degrees) of the reflection cone of ``highlight="cone"``
-HIGHLIGHT_ANGLE = 12.0
-#: default fraction of the image range of ``highlight="range"``
-HIGHLIGHT_FRACTION = 0.1
 
 
 @dataclass(eq=False, repr=False)
@@ -445,24 +441,6 @@ def _quantize(images, mask, bits):
         img *= np.float32(top / levels)
 
 
-def _nonneg(value, name):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise PsbenchError(f"{name} must be a number >= 0, got {value!r}") from None
-    if not np.isfinite(v) or v < 0:
-        raise PsbenchError(f"{name} must be a finite number >= 0, got {value!r}")
-    return v
-
-
-def _positive(value, name):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise PsbenchError(f"{name} must be a number > 0, got {value!r}") from None
-    if not np.isfinite(v) or v <= 0:
-        raise PsbenchError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
 
 
 def _albedo(value, name, shape):
