@@ -57,7 +57,7 @@ class TrimOptions(Options):
     ----------
     drop_dark : float, default 0.25
         Fraction of each pixel's redundant valid observations dropped from the dark
-        end, in [0, 0.5): ``floor(drop_dark * (m - 3))`` of a pixel with m valid ones.
+        end, in [0, 0.5): ``round(drop_dark * (m - 3))`` (halves up) of a pixel with m valid ones.
     drop_bright : float, default 0.25
         Fraction dropped from the bright end, in [0, 0.5).
     refine : int, default 1
@@ -89,7 +89,10 @@ def _counts(m, dark, bright):
     """Per-pixel numbers of dropped dark / bright observations: fractions of the m - 3
     redundant ones (at least three are always kept)."""
     red = np.maximum(np.asarray(m) - 3, 0)
-    return (np.floor(dark * red).astype(np.int64), np.floor(bright * red).astype(np.int64))
+    # rounded, not floored: with 5-6 lights 1 + 1 are dropped (a cast shadow and a
+    # highlight) where floor dropped none; the sum never exceeds m - 3
+    return (np.floor(dark * red + 0.5).astype(np.int64),
+            np.floor(bright * red + 0.5).astype(np.int64))
 
 
 def trim_valid(px: Pixels, dark: float, bright: float) -> np.ndarray:

@@ -36,14 +36,25 @@ def distinct_images():
 
 
 def test_drops_the_requested_ranks():
-    """Fractions of the m - 3 redundant observations: 16 lights, 0.25 / 0.125 ->
-    floor(3.25) = 3 dark and floor(1.625) = 1 bright."""
+    """Fractions of the m - 3 redundant observations, rounded: 16 lights, 0.25 / 0.1 ->
+    round(3.25) = 3 dark and round(1.3) = 1 bright."""
     lay, images = distinct_images()
-    f = fit("trim", problem(images, lay), drop_dark=0.25, drop_bright=0.125, refine=0)
+    f = fit("trim", problem(images, lay), drop_dark=0.25, drop_bright=0.1, refine=0)
     kept = f.valid.sum(axis=0)
     assert (kept == 16 - 3 - 1).all()
     order = np.argsort(np.argsort(images, axis=0), axis=0)     # ranks 0..15
     assert (f.valid == ((order >= 3) & (order < 15))).all()
+
+
+def test_six_lights_drop_one_from_each_end():
+    """round(0.25 * 3) = 1: a rig of 6 lights still loses its darkest and brightest."""
+    lay, images = distinct_images()
+    valid = np.ones(images.shape, dtype=bool)
+    valid[6:] = False
+    f = fit("trim", problem(images, lay, valid=valid), refine=0)
+    assert (f.valid.sum(axis=0) == 4).all()
+    order = np.argsort(np.argsort(np.where(valid, images, np.inf), axis=0), axis=0)
+    assert (f.valid == (valid & (order >= 1) & (order < 5))).all()
 
 
 def test_ties_with_a_dropped_value_go_with_it():
