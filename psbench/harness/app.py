@@ -23,15 +23,22 @@ exit with code 2.
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import sys
 from pathlib import Path
 
 from .._checks import PsbenchError
 from . import spec as S
+from .checks import _precheck, check_keys
+from .store import run_path
 
 __all__ = ["main", "task"]
 
 _EXIT = {"code": 0}
+# what the command is computing: the store root and {sweep: run ids} (for Ctrl-C)
+_WATCH = {}
 # top-level config keys (from the run spec): "+key=value" is accepted for these too
 # (not for experiment: "+experiment=NAME" selects a config group)
 _KEYS = tuple(p.name for p in S.PARAMS + S.SETTINGS if p.name != "experiment")
@@ -100,12 +107,16 @@ def _overridden(*keys) -> bool:
     return any(k in names for k in keys)
 
 
-def _base_params(cfg) -> dict:
+def _base_params(cfg, overridden=None) -> dict:
+    """The run parameters of ``cfg``; ``overridden``: the keys set on the command line
+    (default: read from Hydra's config of the running job)."""
     from omegaconf import OmegaConf
 
     c = OmegaConf.to_container(cfg, resolve=True)
     base = {k: c.get(k) for k in S.param_names(aliases=True)}
-    if c.get("data") is not None and not _overridden("lights", "zenith", "count"):
+    given = (_overridden("lights", "zenith", "count") if overridden is None
+             else bool({"lights", "zenith", "count"} & set(overridden)))
+    if c.get("data") is not None and not given:
         base.pop("lights")           # a data folder uses all its lights by default
         base.pop("zenith")
         base.pop("count")
@@ -129,21 +140,26 @@ def task(cfg):
 def _task(cfg):
     from omegaconf import OmegaConf
 
-    from .params import normalize, run_id, validate
-    from .run import execute, format_row
-    from .store import read_run, stored_status, write_row
+    from .params import normalize, run_id
+    from .preflight import preflight
+    from .run import format_row
+    from .store import read_run, stored_status
+    from .supervise import MAIN_PID_ENV, run_supervised, worker_setup
 
+    multi = _multirun()
+    if multi:
+        worker_setup(os.environ.get(MAIN_PID_ENV))
+    check_keys(cfg)
     root = Path(str(cfg.results_dir)).expanduser()
     if not root.is_absolute():
         root = _cwd() / root
     if cfg.get("experiment"):
         return _experiment(cfg, root)
-    multi = _multirun()
     st = S.coerce_settings({k: cfg.get(k) for k in ("sweep", "rerun", "retry_failed")})
     params = normalize(_base_params(cfg), base_dir=_cwd())
-    validate(params)
     sweep = st["sweep"]
     rid = run_id(params)
+    _WATCH.update(root=root, runs={sweep: [rid]})
     stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
     skip = stored == "ok" or (multi and stored == "failed" and not st["retry_failed"])
     if skip:
@@ -151,17 +167,18 @@ def _task(cfg):
         line = format_row(row) if row is not None else rid
         print(f"skipped (stored{', failed' if stored == 'failed' else ''}): {line}", flush=True)
         return {"run_id": rid, "status": stored, "skipped": True}
+    preflight([params], root=root, sweep=sweep)     # configuration errors: before any work
     full = OmegaConf.to_container(cfg, resolve=True)
     full["results_dir"] = str(root)
-    row = execute(params, sweep=sweep, config={"params": params, "cfg": full})
-    exc = row.pop("_exc", None)
-    path = write_row(root, row)
+    row = run_supervised([params], root=root, sweep=sweep,
+                         config={"params": params, "cfg": full})[0]
+    path = run_path(root, sweep, rid)
     print(f"{format_row(row)} | stored {path}", flush=True)
     if row["status"] != "ok":
-        if not isinstance(exc, PsbenchError):      # a bug or numerical failure: show where
+        if row.get("exc_kind") == "error":        # a bug or numerical failure: show where
             print(row.get("traceback") or "", file=sys.stderr, flush=True)
         if not multi:
-            _EXIT["code"] = 2 if isinstance(exc, PsbenchError) else 1
+            _EXIT["code"] = 2 if row.get("exc_kind") == "config" else 1
     return {"run_id": rid, "status": row["status"], "skipped": False}
 
 
@@ -183,6 +200,9 @@ def _experiment(cfg, root):
         exp = experiment_spec(cfg.experiment)
     runs = expand(exp, scale, _base_params(cfg), base_dir=_cwd())
     name = str(exp["name"])
+    from .params import run_id
+
+    _WATCH.update(root=root, runs={name: [run_id(p) for p in runs]})
     print(f"experiment {name} (scale={cfg.scale}): {len(runs)} runs -> {root}/runs/{name}/",
           file=sys.stderr, flush=True)
     from omegaconf import OmegaConf
@@ -210,6 +230,8 @@ def main(args=None):
     """
     import hydra
 
+    from .supervise import MAIN_PID_ENV
+
     args = list(sys.argv[1:] if args is None else args)
     if "--version" in args:
         import psbench
@@ -221,13 +243,120 @@ def main(args=None):
 
         sys.stdout.write(help_text())
         return
-    sys.argv = [sys.argv[0]] + _entries(_fix_argv(args))
+    argv = _entries(_fix_argv(args))
+    sys.argv = [sys.argv[0]] + argv
     _EXIT["code"] = 0
+    _WATCH.clear()
+    os.environ[MAIN_PID_ENV] = str(os.getpid())   # pool workers follow this process
     S.register_hydra()
-    deco = hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name="config")
-    deco(task)()
+    old_term = _on_sigterm()
+    restore = _sigint_here()
+    try:
+        try:
+            _precheck(argv, _WATCH)
+        except PsbenchError as exc:
+            _err(exc)
+            sys.exit(2)
+        deco = hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name="config")
+        deco(task)()
+    except KeyboardInterrupt:
+        _interrupted()
+        sys.exit(130)
+    finally:
+        if restore is not None:
+            restore()
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
     if _EXIT["code"]:
         sys.exit(_EXIT["code"])
+
+
+def _on_sigterm():
+    """SIGTERM (``kill``, ``timeout``, a scheduler) stops like Ctrl-C: one line, no
+    temporary files, resumable."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, stop)
+
+
+def _sigint_here():
+    """Ctrl-C reaches the whole process group; let it stop only this process.
+
+    SIGINT is blocked while psbench runs (a blocked signal is inherited by the pool
+    workers and run processes this process starts, so they never see it and print no
+    traceback) and a thread waits for it and raises KeyboardInterrupt here, which
+    stops the pool, the run processes and reports. Returns the function restoring the
+    previous state (None where signals cannot be managed this way)."""
+    import _thread
+    import threading
+
+    if (threading.current_thread() is not threading.main_thread()
+            or not hasattr(signal, "pthread_sigmask") or not hasattr(signal, "SIGUSR1")):
+        return None
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old_usr1 = signal.signal(signal.SIGUSR1, lambda signum, frame: None)   # wakes a wait
+    main_id = threading.main_thread().ident
+    state = {"stop": False}
+
+    def wait():
+        while True:
+            signal.sigwait({signal.SIGINT})
+            if state["stop"]:
+                return
+            _thread.interrupt_main()
+            signal.pthread_kill(main_id, signal.SIGUSR1)
+
+    t = threading.Thread(target=wait, name="psbench-sigint", daemon=True)
+    t.start()
+
+    def restore():
+        state["stop"] = True
+        with contextlib.suppress(Exception):
+            signal.pthread_kill(t.ident, signal.SIGINT)
+            t.join(1.0)
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        signal.signal(signal.SIGUSR1, old_usr1)
+
+    return restore
+
+
+def _interrupted():
+    """Ctrl-C: wait for the run processes to go, remove their temporary files, and say
+    how much of the work is stored (it resumes from there)."""
+    from .store import clean_temps, stored_status
+
+    _wait_children()
+    root = _WATCH.get("root")
+    if root is None:
+        print("\ninterrupted", file=sys.stderr, flush=True)
+        return
+    with contextlib.suppress(Exception):
+        clean_temps(root, min_age=0.0)
+    done = total = 0
+    for sweep, ids in (_WATCH.get("runs") or {}).items():
+        with contextlib.suppress(Exception):
+            st = stored_status(root, sweep, ids if len(ids) < 64 else None)
+            done += sum(1 for r in ids if r in st)
+        total += len(ids)
+    print(f"\ninterrupted: {done}/{total} stored; run the same command to resume",
+          file=sys.stderr, flush=True)
+
+
+def _wait_children(timeout=5.0):
+    """Wait (a few seconds at most) for this process's children to exit."""
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - a declared dependency
+        return
+    with contextlib.suppress(Exception):
+        kids = psutil.Process().children(recursive=True)
+        psutil.wait_procs(kids, timeout=timeout)
 
 
 if __name__ == "__main__":  # pragma: no cover

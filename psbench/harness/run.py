@@ -38,7 +38,8 @@ from .params import PARAMS, normalize, run_id, scene_key, validate
 from .params import plain as _plain  # noqa: F401 - used by grid
 
 __all__ = ["PARAMS", "KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
-           "execute", "run_chunk", "format_row", "provenance", "select_lights"]
+           "execute", "run_chunk", "format_row", "provenance", "select_lights", "solve_run",
+           "base_row", "failed_row", "pinned_threads"]
 
 KINDS, EXTRAS = S.KINDS, S.EXTRAS
 
@@ -177,19 +178,28 @@ def _f(v):
     return v if math.isfinite(v) else None
 
 
-def _solve_metrics(p, sc):
-    from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
+def solve_run(p, images, lights, object_mask, *, rounds=None):
+    """``psbench.solve`` called as run ``p`` calls it (the preflight's dry run calls this
+    too, so both check the very same arguments; it caps the mask rounds at ``rounds``)."""
     from ..solve import solve
 
     kw = dict(p.get("options") or {})          # method options, checked by normalize()
+    if rounds is not None:
+        kw["max_iter"] = min(int(kw.get("max_iter", rounds)), rounds)
     if p["weight"] is not None:
         kw["weight"] = p["weight"]
     if p["binary"]:
         kw["binary"] = True
+    return solve(images, lights, mask=p["mask"], method=p["method"], weighted=p["weighted"],
+                 object_mask=object_mask, thresholds=p["thresholds"] or None,
+                 th_scope=p["th_scope"], seed=p["seed"], **kw)
+
+
+def _solve_metrics(p, sc):
+    from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
+
     t0 = time.perf_counter()
-    res = solve(sc.images, sc.lights, mask=p["mask"], method=p["method"], weighted=p["weighted"],
-                object_mask=sc.mask, thresholds=p["thresholds"] or None,
-                th_scope=p["th_scope"], seed=p["seed"], **kw)
+    res = solve_run(p, sc.images, sc.lights, sc.mask)
     t_solve = time.perf_counter() - t0
     row = dict(t_solve=t_solve, n_images=int(sc.images.shape[0]), size=int(sc.images.shape[1]))
     if sc.normals is not None:
@@ -258,43 +268,12 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
         Extra json-able config to record (default: the parameters).
     """
     p = params
-    row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
-    row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
-    row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
-    _layout_fields(p, row)
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        validate(p)
-        if p["kind"] == "noop":
-            a = p["args"]
-            if a.get("sleep"):
-                time.sleep(float(a["sleep"]))
-            if a.get("fail"):
-                raise RuntimeError(str(a["fail"]))
-            if a.get("die"):                      # simulate a worker killed mid-run
-                import signal
-
-                os.kill(os.getpid(), signal.SIGKILL)
-            row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
-        elif p["kind"] == "cond":
-            from ..lights import layout
-
-            row["cond"] = _f(layout(p["lights"]).cond())
-        elif p["kind"] == "analysis":
-            row.update(_analysis(p))
-        else:
-            key = scene_key(p)
-            sc = cache.get(key) if cache is not None else None
-            if sc is None:
-                sc = _Scene(p)
-                if cache is not None:
-                    cache.clear()
-                    cache[key] = sc
-                row["t_render"] = sc.t_render
-            else:
-                row["t_render"] = 0.0
-            row.update(_solve_metrics(p, sc))
+        with pinned_threads():
+            _compute(p, row, cache)
         row["status"] = "ok"
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded, never fatal
         row["status"] = "failed"
@@ -309,6 +288,80 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
 
     row["utc"] = _dt.datetime.now(_dt.timezone.utc)
     return row
+
+
+def base_row(p, *, sweep="adhoc", experiment=None, config=None) -> dict:
+    """The parameter, identity and provenance columns of run ``p``'s row."""
+    row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
+    row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
+    row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
+    _layout_fields(p, row)
+    return row
+
+
+def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict:
+    """The row of a run that ended without writing its own (its process was killed,
+    e.g. by the out-of-memory killer)."""
+    import datetime as _dt
+
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
+    row.update(status="failed", error=str(error), traceback=str(error),
+               utc=_dt.datetime.now(_dt.timezone.utc))
+    return row
+
+
+class pinned_threads:
+    """Run with one BLAS / OpenMP thread: a run's numbers must not depend on how it was
+    launched (a single ``psbench`` call, a ``-m`` worker, a shard job), and the thread
+    count changes the summation order of multi-threaded BLAS kernels."""
+
+    def __enter__(self):
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # pragma: no cover - a declared dependency
+            self._lim = None
+            return self
+        self._lim = threadpool_limits(limits=1)
+        return self
+
+    def __exit__(self, *exc):
+        if self._lim is not None:
+            self._lim.restore_original_limits()
+        return False
+
+
+def _compute(p, row, cache):
+    """The work of one run; fills ``row``'s metric columns."""
+    validate(p)
+    if p["kind"] == "noop":
+        a = p["args"]
+        if a.get("sleep"):
+            time.sleep(float(a["sleep"]))
+        if a.get("fail"):
+            raise RuntimeError(str(a["fail"]))
+        if a.get("die"):                      # simulate a run killed mid-way (OOM killer)
+            import signal
+
+            os.kill(os.getpid(), signal.SIGKILL)
+        row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
+    elif p["kind"] == "cond":
+        from ..lights import layout
+
+        row["cond"] = _f(layout(p["lights"]).cond())
+    elif p["kind"] == "analysis":
+        row.update(_analysis(p))
+    else:
+        key = scene_key(p)
+        sc = cache.get(key) if cache is not None else None
+        if sc is None:
+            sc = _Scene(p)
+            if cache is not None:
+                cache.clear()
+                cache[key] = sc
+            row["t_render"] = sc.t_render
+        else:
+            row["t_render"] = 0.0
+        row.update(_solve_metrics(p, sc))
 
 
 def _store_row(root, row):

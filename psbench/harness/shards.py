@@ -19,9 +19,9 @@ from pathlib import Path
 from .._checks import PsbenchError
 from .params import run_id, scene_key
 from .progress import Progress
-from .run import run_chunk
 from .spec import LAUNCHERS
 from .store import default_root, stored_status
+from .supervise import run_supervised, worker_setup
 
 __all__ = ["LAUNCHERS", "plan", "make_chunks", "split_shards", "run_shard", "execute_runs"]
 
@@ -77,13 +77,21 @@ def run_shard(chunks, *, root, sweep, experiment=None, jobs=1):
     if _n_workers(jobs) == 1 or len(chunks) == 1:
         out = []
         for c in chunks:
-            out.extend(run_chunk(c, root=root, sweep=sweep, experiment=experiment))
+            out.extend(_summaries(run_supervised(c, root=root, sweep=sweep,
+                                                 experiment=experiment)))
         return out
-    from joblib import Parallel, delayed
+    prog = Progress(sum(len(c) for c in chunks), label=sweep, stream=open(os.devnull, "w"))
+    return _joblib(chunks, prog, jobs=jobs, root=root, sweep=sweep, experiment=experiment)
 
-    res = Parallel(n_jobs=int(jobs))(
-        delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment) for c in chunks)
-    return [r for part in res for r in part]
+
+def _summaries(rows):
+    return [{k: r.get(k) for k in ("run_id", "status", "error", "t_total")} for r in rows]
+
+
+def _pool_chunk(chunk, root, sweep, experiment, main_pid):
+    """A pool worker's task: follow the main process, then run the chunk supervised."""
+    worker_setup(main_pid)
+    return _summaries(run_supervised(chunk, root=root, sweep=sweep, experiment=experiment))
 
 
 def _n_workers(jobs):
@@ -95,26 +103,48 @@ def _n_workers(jobs):
     return n if jobs == -1 else max(1, n + 1 + jobs if jobs < 0 else jobs)
 
 
+#: pool restarts after a worker process itself was lost, before giving up
+POOL_RESTARTS = 3
+
+
 def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
     results = []
     if _n_workers(jobs) == 1 or len(chunks) == 1:
         for c in chunks:
-            res = run_chunk(c, root=root, sweep=sweep, experiment=experiment)
+            res = _summaries(run_supervised(c, root=root, sweep=sweep, experiment=experiment))
             prog.update(len(res), sum(r["status"] != "ok" for r in res))
             results.extend(res)
         return results
     from joblib import Parallel, delayed
 
-    par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
-    try:
-        for res in par(delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment)
-                       for c in chunks):
-            prog.update(len(res), sum(r["status"] != "ok" for r in res))
-            results.extend(res)
-    except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OOM killer
-        prog.stream.write(f"\nworker pool failed ({type(exc).__name__}: {str(exc)[:300]}); "
-                          f"completed runs are stored: run the same command again to resume\n")
-        results.append({"run_id": None, "status": "failed", "error": str(exc), "t_total": None})
+    pending = list(chunks)
+    for attempt in range(POOL_RESTARTS + 1):
+        par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
+        try:
+            for res in par(delayed(_pool_chunk)(c, str(root), sweep, experiment, os.getpid())
+                           for c in pending):
+                prog.update(len(res), sum(r["status"] != "ok" for r in res))
+                results.extend(res)
+            return results
+        except Exception as exc:  # noqa: BLE001 - a worker process itself was killed
+            from .params import run_id
+
+            got = {r["run_id"] for r in results}
+            stored = stored_status(root, sweep)
+            pending = [[p for p in c if run_id(p) not in got and run_id(p) not in stored]
+                       for c in pending]
+            pending = [c for c in pending if c]
+            lost = f"{type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}"
+            if not pending:
+                return results
+            if attempt == POOL_RESTARTS:
+                prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
+                                  "runs are stored: run the same command again to resume\n")
+                results.append({"run_id": None, "status": "failed", "error": lost,
+                                "t_total": None})
+                return results
+            prog.stream.write(f"\na worker process was lost ({lost}); restarting the pool "
+                              f"for the {sum(map(len, pending))} runs not stored\n")
     return results
 
 
@@ -203,6 +233,10 @@ def execute_runs(runs, *, root, sweep, experiment=None, rerun=False, retry_faile
         raise PsbenchError(f"launcher={launcher!r} is not known; valid choices: {', '.join(LAUNCHERS)}")
     root = default_root(root)
     todo, skipped = plan(runs, root=root, sweep=sweep, rerun=rerun, retry_failed=retry_failed)
+    if todo:                       # configuration errors: refused before any work
+        from .preflight import preflight
+
+        preflight(todo, root=root, sweep=sweep)
     prog = Progress(len(todo), label=label or sweep, stream=stream, skipped=len(skipped))
     if skipped:
         prog.stream.write(f"{sweep}: {len(skipped)} of {len(runs)} runs skipped (stored)"
