@@ -81,6 +81,11 @@ def _precheck(argv, watch) -> None:
     except Exception:  # noqa: BLE001 - a syntax error: Hydra reports it in its own words
         return
     user = [o for o in parsed if not o.key_or_group.startswith("hydra")]
+    valid = known_keys()
+    for o in user:
+        key = o.key_or_group.split(".", 1)[0]
+        if "/" not in key and key not in valid:
+            check_keys({key: None})
     fixed = [o.input_line for o in user if not o.is_sweep_override()]
     swept = [o for o in user if o.is_sweep_override()]
     try:

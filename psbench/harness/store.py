@@ -92,15 +92,19 @@ def _atomic_write(table: pa.Table, path: Path) -> Path:
 def check_writable(root, sweep=None) -> Path:
     """Refuse (one line) a store where rows cannot be written, before any work.
 
-    Creates ``<root>/runs[/<sweep>]`` if needed and writes and removes a temporary
-    file there (permission bits alone do not tell: root ignores them, read-only
-    mounts do not show in them).
+    Writes and removes a temporary file in ``<root>/runs[/<sweep>]`` or, when that
+    does not exist yet, in its nearest existing parent (permission bits alone do not
+    tell: root ignores them, read-only mounts do not show in them).
     """
     root = default_root(root)
     d = root / "runs" / _check_name(sweep) if sweep is not None else root / "runs"
+    base = d.absolute()
+    while not base.exists() and base.parent != base:    # nothing is created here
+        base = base.parent
     try:
-        d.mkdir(parents=True, exist_ok=True)
-        probe = d / f".write-test.tmp.{os.getpid()}.0.{HOST}"
+        if not base.is_dir():
+            raise NotADirectoryError(20, "Not a directory", str(base))
+        probe = base / f".write-test.tmp.{os.getpid()}.0.{HOST}"
         with open(probe, "wb") as fh:
             fh.write(b"psbench")
         probe.unlink()

@@ -64,17 +64,25 @@ def test_sweep_six_rows_rerun_no_work_failed_recorded(tmp_path):
     assert len(df) == 6 and set(df["status"]) == {"ok"}
     assert sorted(df["lights"].unique()) == ["30x8", "45x8", "60x8"]
     mt = {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()}
-    # again, plus NL (needs 4 images: fails at solve time): the 6 stored runs do no work,
-    # the 3 NL runs are recorded as failed and the sweep goes on
+    # again, plus NL (needs 4 images): a configuration error refuses the whole sweep
+    # before any run, and nothing is stored
     r2 = psbench("-m", "mask=None,Th,NL", *common, cwd=cwd)
-    assert r2.returncode == 0, r2.stderr
-    assert r2.stdout.count("skipped (stored)") == 6 and r2.stdout.count("FAILED") == 3
+    assert r2.returncode == 2 and "NL needs exactly 4 images" in r2.stderr
+    assert "Traceback" not in r2.stderr and r2.stdout.count("stored") == 0
+    assert {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()} == mt
+    # the stored runs again: no work; a run failing while it runs is recorded as failed
+    # and the sweep goes on
+    r3 = psbench("-m", "mask=None,Th", *common, cwd=cwd)
+    assert r3.returncode == 0 and r3.stdout.count("skipped (stored)") == 6
     assert {p: p.stat().st_mtime_ns for p in mt} == mt
+    r4 = psbench("-m", "kind=noop", "args.fail=boom,null", "seed=1,2", f"results_dir={res}",
+                 "hydra/launcher=basic", cwd=cwd)
+    assert r4.returncode == 0, r4.stderr
+    assert r4.stdout.count("FAILED") == 2
     df = _rows(res)
-    assert len(df) == 9 and (df["status"] == "failed").sum() == 3
-    err = df.loc[df["status"] == "failed", "error"].iloc[0]
-    assert "4 images" in err and "NL" in err
-    assert df.loc[df["status"] == "failed", "traceback"].iloc[0]
+    assert len(df) == 10 and (df["status"] == "failed").sum() == 2
+    failed = df[df["status"] == "failed"]
+    assert set(failed["error"]) == {"RuntimeError: boom"} and failed["traceback"].all()
     assert list(cwd.iterdir()) == []
 
 
@@ -115,8 +123,10 @@ def test_clean_errors_exit_2(tmp_path):
     r = psbench("size=32", "surface=blob", cwd=tmp_path)
     assert r.returncode == 2 and "semisphere" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "results" / "runs").exists()       # config errors store nothing
-    r = psbench("colour=red", cwd=tmp_path)                    # unknown key: Hydra's error
-    assert r.returncode != 0 and "colour" in r.stderr
+    r = psbench("colour=red", cwd=tmp_path)                    # unknown key: refused
+    assert r.returncode == 2 and "unknown key 'colour'" in r.stderr
+    r = psbench("+nosie=0.3", cwd=tmp_path)                    # a typo: refused, not ignored
+    assert r.returncode == 2 and "did you mean 'noise'" in r.stderr
     r = psbench("size=32", "options.bogus=1", cwd=tmp_path)    # checked by the options class
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "'bogus'" in r.stderr and "max_iter" in r.stderr
