@@ -35,6 +35,11 @@ from .._checks import PsbenchError
 _SIM_KEYS = {"surface": str, "size": int, "seed": int, "distance": float, "gamma": float,
              "vignette": float, "hot_pixels": int, "model": str, "exposure": float,
              "power_spread": float, "read_noise": float}
+# lower bounds (value, strict) of the numeric keys
+_LOW = {"size": (16, False), "distance": (0, True), "gamma": (0, True), "vignette": (0, False),
+        "hot_pixels": (0, False), "exposure": (0, True), "power_spread": (0, False),
+        "read_noise": (0, False), "current": (0, True), "timeout": (0, True),
+        "fault_after": (0, False), "baud": (0, True)}
 
 
 def _parse(argv):
@@ -50,8 +55,29 @@ def _parse(argv):
     return args
 
 
-def _bool(v):
-    return str(v).lower() in ("1", "true", "yes", "on")
+def _bool(v, key="value"):
+    v = str(v).lower()
+    if v not in ("1", "true", "yes", "on", "0", "false", "no", "off"):
+        raise PsbenchError(f"{key}={v!r}: expected true or false")
+    return v in ("1", "true", "yes", "on")
+
+
+def _typed(args, key, typ, default=None, *, low=None, strict=False):
+    """``args[key]`` (popped) converted to ``typ``, at least ``low`` (above it when
+    ``strict``); a one-line error naming the key otherwise."""
+    raw = args.pop(key, None)
+    if raw is None:
+        return default
+    try:
+        v = typ(raw)
+    except (TypeError, ValueError):
+        what = {int: "an integer", float: "a number"}.get(typ, typ.__name__)
+        raise PsbenchError(f"{key}={raw!r}: expected {what}") from None
+    if typ is float and v != v or v in (float("inf"), float("-inf")):
+        raise PsbenchError(f"{key}={raw!r}: expected a finite number")
+    if low is not None and (v <= low if strict else v < low):
+        raise PsbenchError(f"{key}={raw!r}: expected a value {'>' if strict else '>='} {low}")
+    return v
 
 
 def main(argv=None):
@@ -66,6 +92,10 @@ def main(argv=None):
     except PsbenchError as e:
         print(f"psbench-capture: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:                       # a device, a folder: the environment
+        print(f"psbench-capture: error: {e.strerror or e}: {e.filename or ''}".rstrip(": "),
+              file=sys.stderr)
+        return 2
 
 
 def _run(args):
@@ -78,19 +108,20 @@ def _run(args):
     if not out:
         raise PsbenchError("out=DIR is required")
     lights = args.pop("lights", "30x4+60x4")
-    current = int(args.pop("current", 350))
-    progress = _bool(args.pop("progress", "true"))
-    overwrite = _bool(args.pop("overwrite", "false"))
+    current = _typed(args, "current", int, 350, low=0, strict=True)
+    progress = _bool(args.pop("progress", "true"), "progress")
+    overwrite = _bool(args.pop("overwrite", "false"), "overwrite")
     if rig == "sim":
         from .sim import RigConfig, SimController, SimRig
         kw = {}
         for k, typ in _SIM_KEYS.items():
             if k in args:
-                kw[k] = typ(args.pop(k))
+                lo, strict = _LOW.get(k, (None, False))
+                kw[k] = _typed(args, k, typ, low=lo, strict=strict)
         targets = args.pop("targets", "all")
         fault = args.pop("fault", None)
-        after = int(args.pop("fault_after", 0))
-        timeout = float(args.pop("timeout", 1.0))
+        after = _typed(args, "fault_after", int, 0, low=0)
+        timeout = _typed(args, "timeout", float, 1.0, low=0, strict=True)
         if args:
             raise PsbenchError(f"unknown key(s) for rig=sim: {', '.join(args)}")
         simrig = SimRig(RigConfig(lights=lights, current_mA=current, **kw))
@@ -110,14 +141,17 @@ def _run(args):
         raise PsbenchError("rig=serial needs port=/dev/ttyUSB0 (or COMn)")
     cam_arg = args.pop("camera", "0")
     exposure = args.pop("exposure", None)
-    baud = int(args.pop("baud", 115200))
-    timeout = float(args.pop("timeout", 1.0))
+    baud = _typed(args, "baud", int, 115200, low=0, strict=True)
+    timeout = _typed(args, "timeout", float, 1.0, low=0, strict=True)
     target = args.pop("target", "object")
     leds = args.pop("leds", None)
     if args:
         raise PsbenchError(f"unknown key(s) for rig=serial: {', '.join(args)}")
     lay = layout(lights)
-    led_idx = None if leds is None else [int(x) for x in leds.split(",")]
+    try:
+        led_idx = None if leds is None else [int(x) for x in leds.split(",")]
+    except ValueError:
+        raise PsbenchError(f"leds={leds!r}: expected comma-separated LED numbers, e.g. 3,4,5") from None
     with LedController(port, baudrate=baud, timeout=timeout) as ctl:
         cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
             if cam_arg.isdigit() else FolderCamera(cam_arg)

@@ -175,10 +175,13 @@ def _task(cfg):
     path = run_path(root, sweep, rid)
     print(f"{format_row(row)} | stored {path}", flush=True)
     if row["status"] != "ok":
-        if row.get("exc_kind") == "error":        # a bug or numerical failure: show where
+        kind = row.get("exc_kind")
+        if kind == "error":                       # a bug or numerical failure: show where
             print(row.get("traceback") or "", file=sys.stderr, flush=True)
+        elif kind in ("memory", "killed"):        # the environment: one line
+            _err(f"{row.get('error')} (the failed row is stored)")
         if not multi:
-            _EXIT["code"] = 2 if row.get("exc_kind") == "config" else 1
+            _EXIT["code"] = 1 if kind == "error" else 2
     return {"run_id": rid, "status": row["status"], "skipped": False}
 
 

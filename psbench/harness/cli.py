@@ -134,7 +134,7 @@ def main(args=None):
     fn = {"ls": _ls, "summary": _summary, "compact": _compact, "verify": _verify}[args.cmd]
     try:
         return fn(args)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:
         print(f"psbench-results: error: {exc}", file=sys.stderr)
         return 2
 

@@ -11,8 +11,9 @@ normalized by :func:`normalize`; their normalized json hashes to the ``run_id``.
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
 - ``analysis``: calls ``psbench.analysis.<analysis>`` with the run parameters its
   signature accepts plus ``args``; its output is stored as json in ``payload``.
-- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true}``;
-  ``die`` kills the process running it: only for tests of worker crashes).
+- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true,
+  alloc_mb: MB}``; ``die`` kills the process running it and ``alloc_mb`` allocates that
+  much memory: only for tests of crashes and memory limits).
 
 Runs sharing a scene (:func:`scene_key`) reuse one rendered scene in
 :func:`run_chunk`.
@@ -339,6 +340,8 @@ def _compute(p, row, cache):
             time.sleep(float(a["sleep"]))
         if a.get("fail"):
             raise RuntimeError(str(a["fail"]))
+        if a.get("alloc_mb"):                  # memory exhaustion, for tests of limits
+            row["payload"] = str(float(np.ones(int(float(a["alloc_mb"]) * 2**17)).sum()))
         if a.get("die"):                      # simulate a run killed mid-way (OOM killer)
             import signal
 

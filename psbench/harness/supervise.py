@@ -149,7 +149,7 @@ def run_supervised(chunk, *, root, sweep, experiment=None, config=None):
     -------
     list of dict
         The stored rows (with ``exc_kind``: None, ``"config"`` for a PsbenchError,
-        ``"error"`` otherwise, ``"killed"`` when the process died), in run order.
+        ``"memory"``, ``"error"`` otherwise, ``"killed"`` when the process died).
 
     Raises
     ------
@@ -194,11 +194,21 @@ def _run_here(p, root, sweep, experiment, config, cache):
     from .store import write_row
 
     row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config)
-    exc = row.pop("_exc", None)
-    write_row(root, row)
-    row["exc_kind"] = None if exc is None else ("config" if isinstance(exc, PsbenchError)
-                                                else "error")
+    row["exc_kind"] = _kind(row.pop("_exc", None))
+    write_row(root, {k: v for k, v in row.items() if k != "exc_kind"})
     return row
+
+
+def _kind(exc):
+    """How a run failed: None (it did not), "config" (a PsbenchError), "memory" (the
+    environment ran out of memory) or "error" (a bug or a numerical failure)."""
+    if exc is None:
+        return None
+    if isinstance(exc, PsbenchError):
+        return "config"
+    if isinstance(exc, MemoryError) or "memory" in type(exc).__name__.lower():
+        return "memory"
+    return "error"
 
 
 def _fork(todo, root, sweep, experiment, config):
@@ -270,9 +280,7 @@ def _child(todo, w, root, sweep, experiment, config):
     for p in todo:
         _send(w, ("start", run_id(p)))
         row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config)
-        exc = row.pop("_exc", None)
-        row["exc_kind"] = None if exc is None else ("config" if isinstance(exc, PsbenchError)
-                                                    else "error")
+        row["exc_kind"] = _kind(row.pop("_exc", None))
         try:
             write_row(root, {k: v for k, v in row.items() if k != "exc_kind"})
             stored = True
