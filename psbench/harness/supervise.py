@@ -89,6 +89,8 @@ def worker_setup(main_pid) -> None:
         return
     if os.environ.get("SUBMITIT_LOCAL_JOB_ID") or os.environ.get("SLURM_JOB_ID"):
         return                       # a scheduler's job, not a pool worker
+    if os.getppid() != int(main_pid) and os.getppid() == 1:
+        os._exit(1)                  # started before the main process died: nothing to do
     if watch_parent(int(main_pid)) and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
