@@ -18,8 +18,12 @@ ship inside the package (``psbench/conf``, loaded as ``pkg://psbench.conf``). Ro
 to ``<results_dir>/hydra/`` and nothing else is written to the current directory.
 A run already stored is skipped ("skipped (stored)") unless ``rerun=true``; stored
 failed runs are retried with ``retry_failed=true`` (single runs always retry them).
-Errors in the configuration (unknown surface, mask, ...) print one clean message and
-exit with code 2.
+Errors in the configuration (an unknown key, surface or mask, a bad value, an
+unwritable store, a run that cannot fit in memory) print one line and exit with code 2
+before any work, and nothing is stored (:mod:`psbench.harness.checks`,
+:mod:`psbench.harness.preflight`); a ``-m`` sweep is checked job by job first. Runs are
+computed in supervised child processes (:mod:`psbench.harness.supervise`). Ctrl-C or
+SIGTERM prints one line (how many runs are stored) and exits with code 130.
 """
 from __future__ import annotations
 
@@ -340,7 +344,7 @@ def _interrupted():
         print("\ninterrupted", file=sys.stderr, flush=True)
         return
     with contextlib.suppress(Exception):
-        clean_temps(root, min_age=0.0)
+        clean_temps(root, grace=0.0)          # writers on this host that are gone
     done = total = 0
     for sweep, ids in (_WATCH.get("runs") or {}).items():
         with contextlib.suppress(Exception):

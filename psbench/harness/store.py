@@ -372,12 +372,13 @@ def dead_temp(path, *, now=None, min_age=3600.0, grace=2.0) -> bool:
     return False
 
 
-def clean_temps(root=None, *, min_age=3600.0) -> list[Path]:
-    """Remove the store's temporary files whose writers are provably dead."""
+def clean_temps(root=None, *, min_age=3600.0, grace=2.0) -> list[Path]:
+    """Remove the store's temporary files whose writers are provably dead
+    (:func:`dead_temp`)."""
     removed = []
     now = time.time()
     for p in temp_files(root):
-        if dead_temp(p, now=now, min_age=min_age):
+        if dead_temp(p, now=now, min_age=min_age, grace=grace):
             with contextlib.suppress(OSError):
                 p.unlink()
                 removed.append(p)

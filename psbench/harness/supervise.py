@@ -10,8 +10,8 @@ supervisor (``PR_SET_PDEATHSIG`` on Linux), and a worker process of a pool exits
 within a second when the process that started it is gone (:func:`watch_parent`), so a
 killed ``psbench -m`` leaves no orphans writing on.
 
-Where ``fork`` is not available (or with ``PSBENCH_INPROCESS=1``) runs are computed in
-the calling process.
+Elsewhere than on Linux (or with ``PSBENCH_INPROCESS=1``) runs are computed in the
+calling process.
 """
 from __future__ import annotations
 
@@ -96,7 +96,10 @@ def worker_setup(main_pid) -> None:
 
 
 def _can_fork() -> bool:
-    return hasattr(os, "fork") and os.environ.get("PSBENCH_INPROCESS", "") in ("", "0")
+    # Linux only: fork after BLAS / GUI frameworks have started threads is unsafe on
+    # macOS, and PR_SET_PDEATHSIG is Linux's
+    return (sys.platform.startswith("linux") and hasattr(os, "fork")
+            and os.environ.get("PSBENCH_INPROCESS", "") in ("", "0"))
 
 
 # ---------------------------------------------------------------------------- messages

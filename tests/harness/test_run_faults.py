@@ -122,19 +122,22 @@ def test_runs_compute_with_one_blas_thread(monkeypatch):
 
 
 @pytest.mark.parametrize("args", [["-m", "kind=noop", "seed=0,1,2,3", "args.sleep=2"],
-                                  ["kind=noop", "args.sleep=30"]])
+                                  ["kind=noop", "args.sleep=30"],
+                                  ["+experiment=table5_3", "scale=ci", "jobs=2"]],
+                         ids=["sweep", "run", "experiment"])
 def test_ctrl_c_one_line_no_traceback_no_temp(tmp_path, args):
-    """Issue 12 item 3: Ctrl-C (SIGINT to the process group) of a sweep or a run."""
+    """Issue 12 item 3: Ctrl-C (SIGINT to the process group) of a sweep, a run or an
+    experiment: one line, exit 130, no traceback, no temporary file."""
     proc = subprocess.Popen(CMD + args + [f"results_dir={tmp_path}"], cwd=tmp_path,
                             env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
     t0 = time.time()
-    while time.time() - t0 < 120:               # until a run process computes
+    while time.time() - t0 < 120:               # until run processes compute
         kids = psutil.Process(proc.pid).children(recursive=True)
         if any(k.ppid() != proc.pid or "-m" not in args for k in kids):
             break
         time.sleep(0.2)
-    time.sleep(1.0)
+    time.sleep(2.0)
     os.killpg(proc.pid, signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
