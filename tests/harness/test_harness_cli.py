@@ -1,8 +1,8 @@
 """Harness end to end: the ``psbench`` command through subprocesses at tiny sizes.
 
 Covers: one run prints a row and stores it; a -m sweep stores one row per run and a
-re-run does no work; a SIGKILLed parallel sweep resumes to exactly its rows; a failing
-run is recorded without stopping the sweep; clean errors (exit 2) for unknown names;
+re-run does no work; a configuration error refuses a sweep before any run; a SIGKILLed
+parallel sweep resumes to exactly its rows; clean errors (exit 2) for unknown names;
 nothing is written to the current directory; experiments through the command line.
 """
 import os
@@ -53,7 +53,7 @@ def test_single_run_prints_row_and_keeps_cwd_clean(tmp_path):
     assert r2.returncode == 0 and "skipped (stored)" in r2.stdout
 
 
-def test_sweep_six_rows_rerun_no_work_failed_recorded(tmp_path):
+def test_sweep_six_rows_rerun_no_work_config_error_refused(tmp_path):
     res = tmp_path / "res"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -70,19 +70,11 @@ def test_sweep_six_rows_rerun_no_work_failed_recorded(tmp_path):
     assert r2.returncode == 2 and "NL needs exactly 4 images" in r2.stderr
     assert "Traceback" not in r2.stderr and r2.stdout.count("stored") == 0
     assert {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()} == mt
-    # the stored runs again: no work; a run failing while it runs is recorded as failed
-    # and the sweep goes on
+    # the stored runs again: no work (a run failing while it runs is stored as failed and
+    # the sweep goes on: tests/harness/test_run_faults.py)
     r3 = psbench("-m", "mask=None,Th", *common, cwd=cwd)
     assert r3.returncode == 0 and r3.stdout.count("skipped (stored)") == 6
     assert {p: p.stat().st_mtime_ns for p in mt} == mt
-    r4 = psbench("-m", "kind=noop", "args.fail=boom,null", "seed=1,2", f"results_dir={res}",
-                 "hydra/launcher=basic", cwd=cwd)
-    assert r4.returncode == 0, r4.stderr
-    assert r4.stdout.count("FAILED") == 2
-    df = _rows(res)
-    assert len(df) == 10 and (df["status"] == "failed").sum() == 2
-    failed = df[df["status"] == "failed"]
-    assert set(failed["error"]) == {"RuntimeError: boom"} and failed["traceback"].all()
     assert list(cwd.iterdir()) == []
 
 
