@@ -193,3 +193,32 @@ def test_memory_limit_refused_up_front_or_failed_row_stored(tmp_path):
     df = store.read_store(tmp_path / "results")
     assert len(df) == 1 and df.loc[0, "status"] == "failed"
     assert "MemoryError" in df.loc[0, "error"]
+
+
+_POOL = """
+from psbench.harness.grid import expand
+from psbench.harness.shards import execute_runs
+runs = expand({"name": "wk", "grids": [{"kind": "noop", "seed": list(range(8)),
+                                        "args": {"sleep": 1.0}}]})
+out = execute_runs(runs, root="res", sweep="wk", experiment="wk", jobs=2)
+assert out["ok"] == 8, out
+"""
+
+
+def test_lost_pool_worker_restarts_the_pool(tmp_path):
+    """A pool worker process itself killed (not a run process): the experiment restarts
+    the pool for the runs not stored and completes."""
+    proc = subprocess.Popen([sys.executable, "-c", _POOL], cwd=tmp_path, env=_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0, busy = time.time(), []
+    while time.time() - t0 < 120 and not busy:
+        busy = [c for c in psutil.Process(proc.pid).children()
+                if "loky" in " ".join(c.cmdline()) and c.children()]
+        time.sleep(0.2)
+    assert busy, "no worker ran a chunk"
+    busy[0].kill()
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert "restarting the pool" in err
+    df = store.read_store(tmp_path / "res")
+    assert len(df) == 8 and set(df["status"]) == {"ok"}
