@@ -13,6 +13,7 @@ Each problem is one :class:`~psbench.PsbenchError` line; the command exits with 
 from __future__ import annotations
 
 import difflib
+import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -38,22 +39,18 @@ def _compose(overrides=()):
 
 @lru_cache(maxsize=1)
 def known_keys() -> tuple:
-    """Top-level keys of psbench's configuration (run parameters, settings and
-    whatever else the primary config defines)."""
-    from hydra.core.global_hydra import GlobalHydra
+    """Top-level keys of psbench's configuration: the run spec's parameters and
+    settings, and whatever else the primary config (``psbench/conf/config.yaml``)
+    defines besides Hydra's own settings."""
+    from importlib.resources import files
+
+    from omegaconf import OmegaConf
 
     from . import spec as S
 
-    if GlobalHydra.instance().is_initialized():   # inside a job: Hydra's own is running
-        from importlib.resources import files
-
-        from omegaconf import OmegaConf
-
-        extra = OmegaConf.load(files("psbench.conf") / "config.yaml")
-        return tuple(dict.fromkeys([p.name for p in S.PARAMS + S.SETTINGS]
-                                   + [k for k in extra if k not in ("defaults", "hydra")]))
-    S.register_hydra()
-    return tuple(_compose().keys())
+    extra = OmegaConf.load(files("psbench.conf") / "config.yaml")
+    return tuple(dict.fromkeys([p.name for p in S.PARAMS + S.SETTINGS]
+                               + [k for k in extra if k not in ("defaults", "hydra")]))
 
 
 def check_keys(cfg) -> None:
@@ -86,6 +83,14 @@ def _precheck(argv, watch) -> None:
         key = o.key_or_group.split(".", 1)[0]
         if "/" not in key and key not in valid:
             check_keys({key: None})
+    from .store import check_writable
+
+    if not multi:               # the task checks the rest; here what Hydra needs first
+        given = [o for o in user if o.key_or_group == "results_dir"]
+        root = given[-1].value() if given else None
+        root = Path(str(root or os.environ.get("PSBENCH_RESULTS") or "results")).expanduser()
+        check_writable(root if root.is_absolute() else Path.cwd() / root)
+        return
     fixed = [o.input_line for o in user if not o.is_sweep_override()]
     swept = [o for o in user if o.is_sweep_override()]
     try:
@@ -97,11 +102,9 @@ def _precheck(argv, watch) -> None:
     check_keys(cfg0)
     root = Path(str(cfg0.results_dir)).expanduser()
     root = root if root.is_absolute() else Path.cwd() / root
-    from .store import check_writable
-
     check_writable(root)
     watch["root"] = root
-    if not multi or cfg0.get("experiment"):
+    if cfg0.get("experiment"):
         return
     _sweep(cfg0, swept, parser, root, watch, {o.key_or_group.split(".")[0] for o in user})
 
