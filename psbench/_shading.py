@@ -9,16 +9,22 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Shader"]
+from ._checks import PsbenchError, choice
+
+__all__ = ["Shader", "highlight_plane", "highlight_rule", "highlight_truth"]
 
 
 class Shader:
     """Per-light shading of one surface; float32 (H, W) planes."""
 
     def __init__(self, height, object_mask, normals, lay, model, rho_d, rho_s, m, phong_m,
-                 positions, falloff, perspective, clamp=True):
+                 positions, falloff, perspective, clamp=True, half_cos=False):
         self.object_mask = object_mask
         self.clamp = clamp
+        #: keep cos(n, n_h) of the last light in ``self.cos_h`` (the reflection-cone
+        #: highlight truth needs it for every model)
+        self.want_half = half_cos
+        self.cos_h = None
         self._t = None  # work buffers, allocated on first use
         self.lay = lay
         self.model = model
@@ -64,6 +70,8 @@ class Shader:
             shape = self.object_mask.shape
             self._t, self._sn, self._sp = (np.empty(shape, np.float32) for _ in range(3))
             self._lit = np.empty(shape, bool)
+        if self.want_half and self.cos_h is None:
+            self.cos_h = np.empty(self.object_mask.shape, np.float32)
         mu = float(self.lay.power[i])
         scale = None
         if self.positions is None:
@@ -81,17 +89,20 @@ class Shader:
         sn = self._dot(dx, dy, dz, self._sn)
         lit = np.greater(sn, 0.0, out=self._lit)
         spec = None
+        vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
+        if self.model == "ts" or (self.want_half and self.model != "lambert"):
+            hx, hy, hz = dx + vx, dy + vy, dz + vz
+            hn = np.sqrt(hx * hx + hy * hy + hz * hz)
+            if np.ndim(hn) == 0:  # constant bisector n_h
+                c = self._dot(hx / hn, hy / hn, hz / hn, self._sp)
+            else:
+                c = self._dot(hx, hy, hz, self._sp)
+                c /= hn
+            np.clip(c, -1.0, 1.0, out=c)
+            if self.want_half:
+                np.copyto(self.cos_h, c)
         if self.model != "lambert":
-            vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
             if self.model == "ts":
-                hx, hy, hz = dx + vx, dy + vy, dz + vz
-                hn = np.sqrt(hx * hx + hy * hy + hz * hz)
-                if np.ndim(hn) == 0:  # constant bisector n_h
-                    c = self._dot(hx / hn, hy / hn, hz / hn, self._sp)
-                else:
-                    c = self._dot(hx, hy, hz, self._sp)
-                    c /= hn
-                np.clip(c, -1.0, 1.0, out=c)
                 a = np.arccos(c, out=c)
                 a *= self.m
                 np.square(a, out=a)
@@ -138,3 +149,62 @@ class Shader:
                 spec[i] = s
                 spec[i][off] = 0.0
         return diff, spec
+
+
+def highlight_plane(out, spec, cos_h, keep, *, cos_t=None, threshold=None):
+    """Ground-truth highlight of one light into ``out`` (H, W) bool: the reflection cone
+    ``cos(n, n_h) > cos_t`` with a specular term (``cos_t``), else the specular term above
+    ``threshold``; only where ``keep`` (lit, unshadowed object pixels)."""
+    if cos_t is not None:
+        np.greater(cos_h, cos_t, out=out)
+        out &= spec > 0          # no specular albedo: no highlight
+    elif threshold is not None and threshold > 0:
+        np.greater(spec, np.float32(threshold), out=out)
+    else:
+        out[...] = False
+        return out
+    out &= keep
+    return out
+
+
+def highlight_truth(shader, dark, drange, *, cos_t=None, fraction=None):
+    """(k, H, W) bool ground-truth highlight of a rendered scene under another definition
+    (``cos_t``: reflection cone; ``fraction``: share of each image's range ``drange``),
+    recomputed light by light; ``dark`` (k, H, W) are the scene's shadows."""
+    k = shader.lay.k
+    out = np.zeros((k,) + shader.object_mask.shape, dtype=bool)
+    if shader.model == "lambert":
+        return out
+    want = shader.want_half
+    shader.want_half = cos_t is not None
+    try:
+        for i in range(k):
+            _, spec, lit = shader.light(i)
+            keep = lit & ~dark[i] & shader.object_mask
+            highlight_plane(out[i], spec, shader.cos_h, keep, cos_t=cos_t,
+                            threshold=None if fraction is None else fraction * float(drange[i]))
+    finally:
+        shader.want_half = want
+    return out
+
+
+def highlight_rule(highlight, angle, fraction):
+    """(rule, angle or None, fraction or None) of render's ground-truth highlight options
+    (validated; defaults :data:`psbench.render.HIGHLIGHT_ANGLE` / ``HIGHLIGHT_FRACTION``)."""
+    from .render import HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, _nonneg, _positive
+    if highlight is None:
+        highlight = "range" if fraction is not None else "cone"
+    rule = choice(highlight, HIGHLIGHT_RULES, "highlight")
+    if rule == "cone":
+        if fraction is not None:
+            raise PsbenchError("highlight_fraction applies to highlight='range'; "
+                               "highlight='cone' takes highlight_angle")
+        a = HIGHLIGHT_ANGLE if angle is None else _positive(angle, "highlight_angle")
+        if a >= 90:
+            raise PsbenchError(f"highlight_angle must be in (0, 90) degrees, got {angle!r}")
+        return rule, float(a), None
+    if angle is not None:
+        raise PsbenchError("highlight_angle applies to highlight='cone'; "
+                           "highlight='range' takes highlight_fraction")
+    f = HIGHLIGHT_FRACTION if fraction is None else _nonneg(fraction, "highlight_fraction")
+    return rule, None, float(f)

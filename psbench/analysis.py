@@ -6,10 +6,13 @@ small. Plots are made elsewhere from the returned frames.
 
 Image kinds used throughout (thesis Figs. 4.3, 4.4, 4.7):
 
-* ``"Di"`` (diffuse): ``model="lambert", shadows=False`` -- no highlights and no cast
-  shadows. Self-shadowed points (s . n <= 0) are still 0 because light cannot be
-  negative; with the thesis's sombreros and zeniths above 90 - max surface zenith a
-  few observations are therefore still attached shadows.
+* ``"Di"`` (diffuse): ``model="lambert", shadows="none"`` -- images "without highlight
+  and shadow" (thesis lines ~824, ~830): plain unclamped Lambert I = rho_d s . n, which
+  is negative where s . n < 0, so least squares is exact up to noise (the premise of the
+  optimal-lighting analyses of Section 2.4). Not a physical camera image.
+* ``"Di-clamped"``: ``model="lambert", shadows="self"`` -- Lambert without cast shadows
+  but with attached (self) shadows clamped to 0 (psbench's earlier "Di"); at zeniths
+  above 90 - max surface zenith some observations are attached shadows.
 * ``"Hi-Sh"``: ``model="ts", shadows=True`` (Torrance-Sparrow highlights, self and cast
   shadows), the thesis's Table 5.1 parameters (rho_d = rho_s = 1, m = 2).
 
@@ -23,12 +26,18 @@ from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "KINDS"]
+           "mask_scores", "highlight_truth_options", "diffuse_counts", "KINDS", "TRUTHS"]
 
 #: image kinds -> render options
-KINDS = {"Di": dict(model="lambert", shadows=False), "Hi-Sh": dict(model="ts", shadows=True)}
+KINDS = {"Di": dict(model="lambert", shadows="none"),
+         "Di-clamped": dict(model="lambert", shadows="self"),
+         "Hi-Sh": dict(model="ts", shadows=True)}
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
+#: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
+#: :func:`highlight_truth_options`): psbench's default reflection cone of 12 deg, the
+#: earlier range cut-off 0.1 and the range cut-off 0.5
+TRUTHS = ("cone12", "range0.1", "range0.5")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -99,7 +108,7 @@ def ne_vs_surface_zenith(surface="sombrero2", lights=("30x8", "45x8", "60x8"), *
     lights : str, Layout or sequence of them
         One curve per layout (default: single rings at 30, 45, 60 degrees, 8 lights).
     size : int
-    kind : {"Hi-Sh", "Di"}
+    kind : {"Hi-Sh", "Di", "Di-clamped"}
     noise : float
     seed : int
     mask : str
@@ -297,7 +306,7 @@ def propose_zeniths(std_h=15.0, z_opt=45.0):
 def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5_5, *,
               weights=("None", "e", "eZsource", "eZsurface", "eZsourceZsurface"),
               binary=(False, True), oracle=False, size=128, noise=0.05, seed=0,
-              z_single=45.0, zeniths=(30.0, 60.0), kind="Hi-Sh"):
+              z_single=45.0, zeniths=(30.0, 60.0), kind="Hi-Sh", render_options=None):
     """The data of Tables 5.5 and 5.6: 1Z PS versus 2Z PS and WPS.
 
     For each surface and image count n: 1Z = ``{z_single}x{n}`` solved with plain PS;
@@ -320,7 +329,9 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
     seed : int
     z_single : float
     zeniths : (float, float)
-    kind : {"Hi-Sh", "Di"}
+    kind : {"Hi-Sh", "Di", "Di-clamped"}
+    render_options : dict, optional
+        Further keyword options of :func:`psbench.render.render` (e.g. ``{"m": 4}``).
 
     Returns
     -------
@@ -335,6 +346,7 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
     for w in _seq(weights):
         choice(w, WEIGHTS, "weights")
     z1, z2 = (float(z) for z in zeniths)
+    ro = dict(render_options or {})
     rows = []
     wlist = list(_seq(weights)) + (["oracle"] if oracle else [])
     for name in _seq(surfaces):
@@ -344,12 +356,12 @@ def wps_table(surfaces=("sombrero1", "sombrero2", "sombrero3"), counts=_COUNTS_5
             if n % 2 or n < 6:
                 raise PsbenchError(f"counts must be even and >= 6 (two rings of >= 3), got {n}")
             lay1 = layout(_ring(z_single, n))
-            sc1 = _render(surf, lay1, kind, noise, seed)
+            sc1 = _render(surf, lay1, kind, noise, seed, **ro)
             r1 = _ps(sc1.images, lay1, object_mask=surf.object_mask)
             rows.append(dict(surface=_sname(surf, name), count=n, source="1Z", lights=lay1.name,
                              weight="None", binary=False, ne=_ne(r1.normals, surf)))
             lay2 = layout(f"{_ring(z1, n // 2)}+{_ring(z2, n // 2)}")
-            sc2 = _render(surf, lay2, kind, noise, seed)
+            sc2 = _render(surf, lay2, kind, noise, seed, **ro)
             for w in wlist:
                 for b in (_seq(binary) if w != "None" else [False]):
                     r = wps(sc2.images, lay2, weight=w, binary=bool(b), object_mask=surf.object_mask,
@@ -386,3 +398,142 @@ def table_5_6(df, *, weight="eZsourceZsurface", count=16):
     t["Mean"] = t.mean(axis=1)
     t.index = ["Binary" if b else "Weighted" for b in t.index]
     return t.reindex([i for i in ("Weighted", "Binary") if i in t.index])
+
+
+# ----------------------------------------------------------------------------- Tables 5.2 / 5.3
+def highlight_truth_options(label):
+    """Render options of a highlight ground-truth label: ``"cone<t>"`` (reflection cone,
+    half-angle t degrees) or ``"range<f>"`` (specular term above f x the image range),
+    e.g. ``"cone12"`` -> ``{"highlight": "cone", "highlight_angle": 12.0}``."""
+    import re
+
+    m = re.fullmatch(r"(cone|range)(\d+(?:\.\d*)?)", str(label))
+    if not m:
+        raise PsbenchError(f"highlight truth {label!r} is not known; expected 'cone<degrees>' "
+                           "or 'range<fraction>', e.g. cone12, range0.5")
+    v = float(m.group(2))
+    key = "highlight_angle" if m.group(1) == "cone" else "highlight_fraction"
+    return {"highlight": m.group(1), key: v}
+
+
+def mask_scores(surface="sombrero2", lights="45x8", *, cases=None, mask="Th", thresholds=None,
+                weighted=False, th_scope="image", th_scopes=(), model="ts", shadows=True,
+                noise=0.05, size=128, seed=0, truths=TRUTHS, render_options=None):
+    """Render one scene, solve it with several masks (or thresholds) and score each: NE,
+    solve time and the quality factor (Eq. 2.32) under several highlight ground-truth
+    definitions (the thesis does not define it; Table 5.2 tunes on QF).
+
+    Parameters
+    ----------
+    surface : str or Surface
+    lights : str or Layout
+    cases : sequence of dict, optional
+        One solve each: ``{"mask": str, "thresholds": dict, "weighted": bool, "th_scope":
+        str}`` (missing keys: the arguments below). Default: one case from ``mask``,
+        ``thresholds``, ``weighted``, ``th_scope``.
+    mask, thresholds, weighted, th_scope
+        Defaults of the cases (as :func:`psbench.solve`).
+    th_scopes : sequence of str
+        Further Th range scopes: every case whose mask contains Th is solved once more
+        with each (e.g. ``("object", "robust", "pixel")``).
+    model, shadows, noise, size, seed
+        The scene (as :func:`psbench.render.render`; ``seed`` also seeds RA).
+    truths : sequence of str
+        Highlight ground-truth labels (:func:`highlight_truth_options`); the first is
+        the one the scene is rendered with (the images do not depend on it).
+    render_options : dict, optional
+        Further keyword options of :func:`psbench.render.render` (e.g. ``{"m": 4}``, the
+        Torrance-Sparrow lobe width).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case and truth: ``case, mask, thresholds`` (json), ``weighted,
+        th_scope, truth, n_images, ne_mean, ne_median, t_solve, qf_hi, qf_sh, qf_total``.
+    """
+    import json
+    import time
+
+    import pandas as pd
+    from .lights import layout
+    from .metrics import normal_error_stats, quality_factor
+    from .render import render
+
+    truths = [str(t) for t in _seq(truths)]
+    opts = [highlight_truth_options(t) for t in truths]
+    if not truths:
+        raise PsbenchError("truths must name at least one highlight ground truth")
+    base = dict(mask=mask, thresholds=thresholds or {}, weighted=weighted, th_scope=th_scope)
+    cases = [dict(base)] if cases is None else [{**base, **dict(c)} for c in _seq(cases)]
+    cases += [{**c, "th_scope": str(sc)} for sc in _seq(th_scopes) for c in list(cases)
+              if "Th" in str(c["mask"]).split("-") and str(sc) != c["th_scope"]]
+    ro = dict(render_options or {})
+    bad = sorted(set(ro) & {"model", "shadows", "noise", "seed", "highlight",
+                            "highlight_angle", "highlight_fraction"})
+    if bad:
+        raise PsbenchError(f"render_options must not set {bad}: they are arguments of "
+                           "mask_scores (truths for the highlight ground truth)")
+    surf = _surface(surface, size)
+    lay = layout(lights)
+    sc = render(surf, lay, model=model, shadows=shadows, noise=noise, seed=seed, **opts[0], **ro)
+    gts = [sc.highlight] + [sc.highlight_truth(**o) for o in opts[1:]]
+    obj = surf.object_mask
+    rows = []
+    for i, c in enumerate(cases):
+        t0 = time.perf_counter()
+        res = _ps(sc.images, lay, mask=c["mask"], object_mask=obj, seed=seed,
+                  thresholds=c["thresholds"] or None, weighted=bool(c["weighted"]),
+                  th_scope=c["th_scope"])
+        t = time.perf_counter() - t0
+        st = normal_error_stats(res.normals, surf.normals, object_mask=obj)
+        flagged = ~np.asarray(res.valid, dtype=bool)
+        for label, gt in zip(truths, gts):
+            qf = quality_factor(flagged, {"highlight": gt, "self_shadow": sc.self_shadow,
+                                          "cast_shadow": sc.cast_shadow}, object_mask=obj)
+            rows.append(dict(case=i, mask=c["mask"], thresholds=json.dumps(
+                c["thresholds"] or {}, sort_keys=True), weighted=bool(c["weighted"]),
+                th_scope=c["th_scope"], truth=label, n_images=lay.k,
+                ne_mean=float(st["mean"]), ne_median=float(st["median"]), t_solve=t,
+                qf_hi=float(qf["hi"]), qf_sh=float(qf["sh"]), qf_total=float(qf["total"])))
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Fig. 5.8
+def diffuse_counts(surface="sombrero2", lights=("30x4", "45x4", "60x4"), *, size=256,
+                   truths=("cone12",), model="ts"):
+    """How many diffuse observations (neither highlight nor shadow) each pixel has, per
+    layout and highlight ground truth (thesis Fig. 5.8: with 4 lights every sombrero and
+    sphere pixel has 2, 3 or 4). Noise-free renders with self and cast shadows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per layout and truth: ``surface, lights, truth, highlight`` (fraction of
+        lit observations that are highlights), ``shadow_only_lt2`` (fraction of pixels
+        with < 2 unshadowed observations), ``d0 .. d<k>`` (fraction of pixels with that
+        many diffuse observations) and ``nondiffuse`` (mean non-diffuse observations per
+        pixel).
+    """
+    import pandas as pd
+    from .lights import layout
+    from .render import render
+
+    surf = _surface(surface, size)
+    obj = np.asarray(surf.object_mask, dtype=bool)
+    rows = []
+    for spec in _seq(lights):
+        lay = layout(spec)
+        sc = render(surf, lay, model=model, noise=0.0)
+        sh = sc.shadow
+        lit = (~sh)[:, obj]
+        base = float((lit.sum(axis=0) < 2).mean())
+        for t in _seq(truths):
+            hi = sc.highlight_truth(**highlight_truth_options(t))
+            d = (~hi & ~sh).sum(axis=0)[obj]
+            row = dict(surface=_sname(surf, surface), lights=lay.name, truth=str(t),
+                       highlight=float(hi[:, obj].sum() / max(lit.sum(), 1)),
+                       shadow_only_lt2=base, nondiffuse=float(lay.k - d.mean()))
+            row.update({f"d{i}": float(c) for i, c in
+                        enumerate(np.bincount(d, minlength=lay.k + 1) / d.size)})
+            rows.append(row)
+    return pd.DataFrame(rows)

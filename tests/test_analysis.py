@@ -80,3 +80,40 @@ def test_wps_table_bad_counts():
         A.wps_table(("sombrero1",), counts=(7,), size=SIZE)
     with pytest.raises(PsbenchError):
         A.wps_table(("sombrero1",), counts=(8,), weights=("bogus",), size=SIZE)
+
+
+def test_mask_scores_scores_every_case_under_every_truth():
+    import psbench as ps
+    from psbench.analysis import TRUTHS, highlight_truth_options, mask_scores
+
+    df = mask_scores("sombrero2", "45x8", cases=[{"mask": "None"}, {"mask": "Th"},
+                                               {"mask": "Hi", "thresholds": {"k_Hi": 0.05}}],
+                     th_scopes=("object",), size=48, noise=0.1, seed=1)
+    assert len(df) == 4 * len(TRUTHS)              # Th also solved with th_scope=object
+    assert set(df[df["th_scope"] == "object"]["mask"]) == {"Th"}
+    # the default truth's QF is the one of the scene rendered with the defaults
+    surf = ps.make_surface("sombrero2", size=48)
+    sc = ps.render(surf, "45x8", noise=0.1, seed=1)
+    res = ps.solve(sc.images, "45x8", mask="Th", object_mask=surf.object_mask, seed=1)
+    qf = ps.quality_factor(~res.valid, sc, object_mask=surf.object_mask)
+    row = df[(df["mask"] == "Th") & (df["th_scope"] == "image") & (df["truth"] == "cone12")]
+    assert row["qf_hi"].iloc[0] == pytest.approx(qf["hi"])
+    th = df[(df["mask"] == "Th") & (df["th_scope"] == "image")].set_index("truth")
+    assert th["ne_mean"].nunique() == 1 and th["qf_hi"].nunique() == len(TRUTHS)
+    assert highlight_truth_options("range0.5") == {"highlight": "range",
+                                                   "highlight_fraction": 0.5}
+    with pytest.raises(ps.PsbenchError, match="highlight truth 'peak'"):
+        mask_scores("sombrero2", "45x8", truths=["peak"], size=32)
+    with pytest.raises(ps.PsbenchError, match="render_options must not set"):
+        mask_scores("sombrero2", "45x8", size=32, render_options={"noise": 0.1})
+
+
+def test_diffuse_counts_fig_5_8():
+    df = A.diffuse_counts("sombrero2", ("45x4",), size=64, truths=("cone12", "range0.1"))
+    assert list(df["truth"]) == ["cone12", "range0.1"]
+    d = df.set_index("truth")
+    cols = [f"d{i}" for i in range(5)]
+    assert np.allclose(d[cols].sum(axis=1), 1.0)
+    assert d.loc["cone12", "d0"] == 0 and d.loc["cone12", "d1"] == 0      # Fig. 5.8 holds
+    assert d.loc["range0.1", "d0"] + d.loc["range0.1", "d1"] > 0.2       # the old truth: not
+    assert d.loc["range0.1", "highlight"] > d.loc["cone12", "highlight"] > 0

@@ -97,7 +97,7 @@ RNG = np.random.default_rng(0)
 DARK = RNG.random((24, 24)).astype(np.float32) * 0.01
 DARK[3, 4] = 0.9
 WHITE = (0.5 + 0.1 * RNG.random((4, 24, 24))).astype(np.float32)
-SPH = ps.make_surface("semisphere", size=48)
+SPH = ps.make_surface("semisphere_disc", size=48)
 SPH_IMGS = ps.render(SPH, ps.layout("30x4"), model="phong", phong_m=200, rho_d=0.05,
                      shadows=False).images
 

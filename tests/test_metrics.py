@@ -338,7 +338,7 @@ def test_qf_bad_input():
 def test_metrics_on_rendered_scene():
     import psbench as ps
 
-    surf = ps.make_surface("semisphere", size=64)
+    surf = ps.make_surface("semisphere_disc", size=64)
     lay = ps.layout("45x8")
     sc = ps.render(surf, lay, model="lambert", shadows=True)
     b = surf.normals.astype(np.float64)  # albedo 1

@@ -384,3 +384,69 @@ def test_bad_lights_and_surface():
 
 def test_models_constant():
     assert MODELS == ("lambert", "phong", "ts")
+
+
+# ---------------------------------------------------------------- thesis-faithful truth / Di
+def test_unclamped_di_is_plain_lambert():
+    # "Di" images of Figs. 4.3/4.4 have no highlight and no shadow: I = rho_d s.n exactly,
+    # negative where s.n < 0, so least squares recovers every normal (clamped: it cannot)
+    from psbench.analysis import KINDS
+    from psbench.surfaces import make_surface
+
+    surf = make_surface("sombrero3", size=64)
+    lay = layout("70x8")
+    di = render(surf, lay, noise=0.0, **KINDS["Di"])
+    expect = np.einsum("hwc,kc->khw", surf.normals, lay.directions).astype(np.float32)
+    np.testing.assert_allclose(di.images, expect, atol=1e-5)
+    assert (di.images < 0).any() and not di.shadow.any() and not di.highlight.any()
+    n, _ = split(wls(di.images, lay.S))
+    assert angle_deg(n, surf.normals).max() < 0.05
+    clamped = render(surf, lay, noise=0.0, **KINDS["Di-clamped"])
+    assert (clamped.images >= 0).all() and clamped.self_shadow.any()
+    n, _ = split(wls(clamped.images, lay.S))
+    assert angle_deg(n, surf.normals).max() > 1.0
+
+
+@pytest.mark.parametrize("name", ["sombrero1", "sombrero2", "sombrero3"])
+def test_default_highlight_truth_satisfies_fig_5_8(name):
+    # Fig. 5.8: with 4 lights at 45 deg every sombrero pixel keeps >= 2 diffuse
+    # observations (neither highlight nor shadow). sombrero3's steepest pixels lose two
+    # observations to shadows alone; highlights must never take a pixel below 2.
+    from psbench.surfaces import make_surface
+
+    surf = make_surface(name, size=192)
+    sc = render(surf, "45x4")
+    obj = surf.object_mask
+    diffuse = (~sc.highlight & ~sc.shadow).sum(axis=0)[obj]
+    shadow_only = (~sc.shadow).sum(axis=0)[obj]
+    assert sc.highlight.any()
+    assert ((diffuse < 2) <= (shadow_only < 2)).all()
+    if name != "sombrero3":
+        assert diffuse.min() >= 2
+    # the earlier definition (specular term > 0.1 x range) contradicts the figure
+    old = sc.highlight_truth(highlight="range", highlight_fraction=0.1)
+    if name == "sombrero2":
+        assert ((~old & ~sc.shadow).sum(axis=0)[obj] < 2).mean() > 0.3
+
+
+def test_highlight_cone_definition_and_options():
+    surf = hemisphere(96, 40.0, mask_disc=True)
+    lay = layout("30x4")
+    sc = render(surf, lay, highlight_angle=15.0)
+    h = lay.directions + np.array([0.0, 0.0, 1.0])
+    h /= np.linalg.norm(h, axis=1)[:, None]
+    ang = np.degrees(np.arccos(np.clip(np.einsum("hwc,kc->khw", surf.normals, h), -1, 1)))
+    expect = (ang < 15.0) & ~sc.shadow & surf.object_mask[None]
+    assert sc.highlight_rule == "cone" and sc.highlight_angle == 15.0
+    assert (sc.highlight != expect).sum() <= 0.001 * expect.size   # float32 rounding at 15 deg
+    assert render(surf, lay).highlight.sum() < sc.highlight.sum()  # default 12 deg
+    assert render(surf, lay, highlight_fraction=0.3).highlight_rule == "range"
+    assert not render(surf, lay, model="lambert").highlight.any()
+    for kw in (dict(highlight="cone", highlight_angle=20), dict(highlight_fraction=0.2)):
+        np.testing.assert_array_equal(sc.highlight_truth(**kw), render(surf, lay, **kw).highlight)
+    with pytest.raises(PsbenchError, match="highlight="):
+        render(surf, lay, highlight="peak")
+    with pytest.raises(PsbenchError, match="highlight_fraction applies"):
+        render(surf, lay, highlight="cone", highlight_fraction=0.2)
+    with pytest.raises(PsbenchError, match="highlight_angle"):
+        render(surf, lay, highlight_angle=95)

@@ -226,7 +226,7 @@ def capture_all(rig, controller, out, *, device, current_mA=None, progress=True,
                     msk = None
                     if t == "sphere":
                         from ..surfaces import make_surface
-                        msk = make_surface("semisphere", size=cfg.size).object_mask
+                        msk = make_surface("semisphere_disc", size=cfg.size).object_mask
                     _write_layout(d, tn, lay, tm, object_mask=msk)
                 else:
                     controller.off()

@@ -332,7 +332,7 @@ class SimRig:
             out = render(plane, self.directions, model="lambert", rho_d=cfg.albedo,
                          light_positions=self.positions, falloff=True, shadows=False).images
         elif target == "sphere":
-            sph = make_surface("semisphere", size=s)
+            sph = make_surface("semisphere_disc", size=s)
             out = render(sph, self.directions, model="phong", phong_m=cfg.sphere_m, rho_d=0.03,
                          rho_s=1.0, light_positions=self.positions, falloff=True,
                          shadows=False).images

@@ -7,7 +7,7 @@ from psbench.report.verdicts import verdict, nodata, num
 
 TITLE = "Fig. 4.3: NE vs image count (Di, Hi-Sh)"
 AVERAGES = ("Mean NE over sombrero1-3, 45-degree ring of n lights, 5 % noise; Di = "
-            "Lambert without shadows, Hi-Sh = TS with shadows.")
+            "unclamped Lambert (no highlight, no shadow), Hi-Sh = TS with shadows.")
 NOTES = ""
 GATED = False
 

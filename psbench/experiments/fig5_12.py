@@ -5,7 +5,8 @@ from psbench.report.aggregates import long_frame, group_mean, fmt_num, mask_fami
 from psbench.report.verdicts import verdict, nodata, slope, num
 
 TITLE = "Fig. 5.12: NE vs noise for the selected masks"
-AVERAGES = ("Mean NE over the five surfaces, 45x8, TS + shadows; NL is the extended mask"
+AVERAGES = ("Mean NE over the five surfaces (the semisphere on its ground plane), 45x8, "
+            "TS + shadows; NL is the extended mask"
             " xNL (8 images), NL-Sh is xNL-Sh.")
 NOTES = "NL is its extension xNL at 8 images (NL-Sh is xNL-Sh)."
 GATED = True

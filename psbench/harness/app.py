@@ -163,6 +163,9 @@ def _task(cfg):
     params = normalize(_base_params(cfg), base_dir=_cwd())
     sweep = st["sweep"]
     rid = run_id(params)
+    pics = _pictures_dir(cfg, root, sweep, rid, multi) if params["kind"] == "solve" else None
+    done = {"run_id": rid, "root": str(root), "sweep": sweep,
+            "out": None if pics is None else str(pics)}
     _WATCH.update(root=root, runs={sweep: [rid]})
     stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
     skip = stored == "ok" or (multi and stored == "failed" and not st["retry_failed"])
@@ -170,14 +173,24 @@ def _task(cfg):
         row = read_run(root, sweep, rid)
         line = format_row(row) if row is not None else rid
         print(f"skipped (stored{', failed' if stored == 'failed' else ''}): {line}", flush=True)
-        return {"run_id": rid, "status": stored, "skipped": True}
+        if stored == "ok" and not _pictures_present(pics):
+            print(f"no pictures in {pics}/ (stored before pictures were written, or with "
+                  "outputs=none): rerun=true makes them", flush=True)
+        return {**done, "status": stored, "skipped": True}
     preflight([params], root=root, sweep=sweep)     # configuration errors: before any work
     full = OmegaConf.to_container(cfg, resolve=True)
     full["results_dir"] = str(root)
+    # the pictures are written by the process that computed the run, before its row is
+    # stored: a stored "ok" row implies its pictures (unless outputs=none)
+    after = None if pics is None else (lambda row, kept: _write_pictures(cfg, pics, row, kept))
     row = run_supervised([params], root=root, sweep=sweep,
-                         config={"params": params, "cfg": full})[0]
+                         config={"params": params, "cfg": full},
+                         wrap=_one_line_warnings, after=after)[0]
+    note = row.pop("_note", None)
     path = run_path(root, sweep, rid)
     print(f"{format_row(row)} | stored {path}", flush=True)
+    if note:
+        print(note, flush=True)
     if row["status"] != "ok":
         kind = row.get("exc_kind")
         if kind == "error":                       # a bug or numerical failure: show where
@@ -186,7 +199,68 @@ def _task(cfg):
             _err(f"{row.get('error')} (the failed row is stored)")
         if not multi:
             _EXIT["code"] = 1 if kind == "error" else 2
-    return {"run_id": rid, "status": row["status"], "skipped": False}
+    return {**done, "status": row["status"], "skipped": False}
+
+
+# ------------------------------------------------------------ pictures (harness/outputs.py)
+def _pictures_dir(cfg, root, sweep, rid, multi):
+    """The run's picture folder (None: ``outputs=none``); refuses a foreign folder."""
+    from . import outputs as O
+
+    st = S.coerce_settings({k: cfg.get(k) for k in ("out", "outputs")})
+    return O.run_dir(out=st["out"], outputs=st["outputs"], root=root, sweep=sweep,
+                     run_id=rid, multi=multi, cwd=_cwd())
+
+
+class _one_line_warnings:
+    """psbench's own warnings (e.g. far lights) as one ``psbench: warning: ...`` line on
+    stderr; other warnings are shown as Python shows them."""
+
+    def __enter__(self):
+        import warnings
+
+        self._cm = warnings.catch_warnings(record=True)
+        self._caught = self._cm.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        import warnings
+
+        from ..io import PsbenchWarning
+
+        self._cm.__exit__(*exc)
+        for w in self._caught:
+            if issubclass(w.category, PsbenchWarning):
+                print(f"psbench: warning: {w.message}", file=sys.stderr, flush=True)
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        return False
+
+
+def _pictures_present(pics):
+    from . import outputs as O
+
+    return O.present(pics)
+
+
+def _write_pictures(cfg, pics, row, kept):
+    """Write a run's pictures; returns the line saying where they went (None when the
+    run has no result). Never fatal: a failure is one warning line and the row is
+    stored all the same."""
+    from . import outputs as O
+    from .run import format_row
+
+    if "result" not in kept:
+        return None
+    lvl = O.level(S.coerce_settings({"outputs": cfg.get("outputs")})["outputs"])
+    try:
+        secs = O.write_run(pics, lvl=lvl, row=row, result=kept["result"],
+                           scene=kept["scene"], line=format_row(row))
+    except Exception as exc:  # noqa: BLE001 - pictures must never cost the row
+        print(f"psbench: warning: pictures not written to {pics}: {type(exc).__name__}: "
+              f"{exc}", file=sys.stderr, flush=True)
+        return None
+    return f"pictures ({lvl}, {secs:.2f} s): {pics}/"
 
 
 def _experiment(cfg, root):
@@ -235,8 +309,6 @@ def main(args=None):
     args : list of str, optional
         Command-line arguments without the program name (default ``sys.argv[1:]``).
     """
-    import hydra
-
     from .supervise import MAIN_PID_ENV
 
     args = list(sys.argv[1:] if args is None else args)
@@ -255,10 +327,13 @@ def main(args=None):
     _EXIT["code"] = 0
     _WATCH.clear()
     os.environ[MAIN_PID_ENV] = str(os.getpid())   # pool workers follow this process
-    S.register_hydra()
-    old_term = _on_sigterm()
-    restore = _sigint_here()
+    old_term = restore = None
     try:
+        old_term = _on_sigterm()
+        restore = _sigint_here()
+        import hydra
+
+        S.register_hydra()
         try:
             _precheck(argv, _WATCH)
         except PsbenchError as exc:
@@ -295,28 +370,36 @@ def _on_sigterm():
 def _sigint_here():
     """Ctrl-C reaches the whole process group; let it stop only this process.
 
-    SIGINT is blocked while psbench runs (a blocked signal is inherited by the pool
-    workers and run processes this process starts, so they never see it and print no
-    traceback) and a thread waits for it and raises KeyboardInterrupt here, which
-    stops the pool, the run processes and reports. Returns the function restoring the
-    previous state (None where signals cannot be managed this way)."""
-    import _thread
+    SIGINT is blocked while psbench runs (the mask is inherited by the run processes
+    this process forks, so they never see it and print no traceback; pool workers
+    leave Ctrl-C to this process once started, see ``worker_setup``) and a thread waits
+    for it and raises KeyboardInterrupt in the main thread, which stops the pool, the
+    run processes and reports. (Ignoring SIGINT instead would also cover pool workers
+    still starting up, but a thread started earlier, e.g. by OpenBLAS, would then take
+    the signal and drop it.) Returns the function restoring the previous state (None
+    where signals cannot be managed this way)."""
     import threading
 
     if (threading.current_thread() is not threading.main_thread()
             or not hasattr(signal, "pthread_sigmask") or not hasattr(signal, "SIGUSR1")):
         return None
     old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    old_usr1 = signal.signal(signal.SIGUSR1, lambda signum, frame: None)   # wakes a wait
     main_id = threading.main_thread().ident
-    state = {"stop": False}
+    state = {"stop": False, "hit": False}
+
+    def hit(signum, frame):        # in the main thread (also wakes a blocking wait)
+        if state["hit"]:
+            state["hit"] = False
+            raise KeyboardInterrupt
+
+    old_usr1 = signal.signal(signal.SIGUSR1, hit)
 
     def wait():
         while True:
             signal.sigwait({signal.SIGINT})
             if state["stop"]:
                 return
-            _thread.interrupt_main()
+            state["hit"] = True
             signal.pthread_kill(main_id, signal.SIGUSR1)
 
     t = threading.Thread(target=wait, name="psbench-sigint", daemon=True)

@@ -92,13 +92,16 @@ class _Scene:
     def __init__(self, p):
         t0 = time.perf_counter()
         self.truth = None
+        self.lights_read = None     # data runs with lights=: what select_lights picked
         if p["data"] is not None:
             from ..io import read_dataset
 
             ds = read_dataset(p["data"])
             self.images, self.lights = ds.images, ds.lights
             if p["lights"] is not None:
-                self.images, self.lights = select_lights(ds.images, ds.lights, p["lights"])
+                self.images, self.lights, self.lights_read = select_lights(
+                    ds.images, ds.lights, p["lights"], report=True)
+                _warn_far_lights(p["data"], self.lights_read)
             self.mask = ds.object_mask
             self.normals = getattr(ds, "normals", None)
         else:
@@ -125,11 +128,19 @@ class _Scene:
         return self._dr
 
 
-def select_lights(images, lights, spec):
+#: degrees: a requested light farther than this from the light used is warned about
+FAR_LIGHT_DEG = 10.0
+
+
+def select_lights(images, lights, spec, *, report=False):
     """Pick, for each light of the layout ``spec``, the nearest unused light of a data set.
 
     Returns the (k', H, W) images and a Layout with the data set's directions and the
-    ring ids of ``spec`` (so multi-zenith methods see the rings).
+    ring ids of ``spec`` (so multi-zenith methods see the rings); with ``report`` also a
+    dict describing the match: ``requested`` (the spec), ``images`` (1-based numbers of
+    the images used), ``off_deg`` (angle between each requested and used light),
+    ``max_off_deg``, ``zenith_deg`` (of the lights used) and ``available`` (the data
+    set's light count).
     """
     from ..lights import layout
 
@@ -145,7 +156,32 @@ def select_lights(images, lights, spec):
     idx.sort()
     sel = np.array([j for _, j in idx])
     lay = layout(have.directions[sel], power=have.power[sel], ring=want.ring)
-    return np.ascontiguousarray(images[sel]), lay
+    imgs = np.ascontiguousarray(images[sel])
+    if not report:
+        return imgs, lay
+    off = np.degrees(np.arccos(np.clip(cos[np.arange(want.k), sel], -1.0, 1.0)))
+    zen = np.degrees(np.arccos(np.clip(have.directions[sel, 2], -1.0, 1.0)))
+    info = dict(requested=str(spec), images=[int(j) + 1 for j in sel],
+                off_deg=[round(float(a), 2) for a in off], max_off_deg=round(float(off.max()), 2),
+                zenith_deg=[round(float(z), 2) for z in zen], available=int(have.k))
+    return imgs, lay, info
+
+
+def _warn_far_lights(folder, info):
+    """Warn when a requested light is more than :data:`FAR_LIGHT_DEG` from the one used."""
+    if info["max_off_deg"] <= FAR_LIGHT_DEG:
+        return
+    import warnings
+
+    from ..io import PsbenchWarning
+
+    zen = info["zenith_deg"]
+    far = sum(a > FAR_LIGHT_DEG for a in info["off_deg"])
+    warnings.warn(f"lights={info['requested']}: {far} of the {len(zen)} lights used are more "
+                  f"than {FAR_LIGHT_DEG:g} deg from the requested directions (up to "
+                  f"{info['max_off_deg']:.1f} deg; the nearest of the {info['available']} "
+                  f"lights of {Path(folder).name} have zeniths {min(zen):.0f}-{max(zen):.0f} "
+                  "deg); the row records the lights used", PsbenchWarning, stacklevel=2)
 
 
 def _json(obj):
@@ -196,12 +232,14 @@ def solve_run(p, images, lights, object_mask, *, rounds=None):
                  th_scope=p["th_scope"], seed=p["seed"], **kw)
 
 
-def _solve_metrics(p, sc):
+def _solve_metrics(p, sc, keep=None):
     from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
 
     t0 = time.perf_counter()
     res = solve_run(p, sc.images, sc.lights, sc.mask)
     t_solve = time.perf_counter() - t0
+    if keep is not None:
+        keep.update(result=res, scene=sc)
     row = dict(t_solve=t_solve, n_images=int(sc.images.shape[0]), size=int(sc.images.shape[1]))
     if sc.normals is not None:
         st = normal_error_stats(res.normals, sc.normals, object_mask=sc.mask)
@@ -254,7 +292,8 @@ def _layout_fields(p, row):
             pass
 
 
-def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) -> dict:
+def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
+            keep=None) -> dict:
     """Run once and return the complete results row (never raises for run errors).
 
     Parameters
@@ -267,6 +306,8 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
         Scene cache shared by runs of a chunk (key :func:`scene_key`).
     config : dict, optional
         Extra json-able config to record (default: the parameters).
+    keep : dict, optional
+        Filled with the solve's ``result`` and its ``scene`` (for pictures).
     """
     p = params
     row = base_row(p, sweep=sweep, experiment=experiment, config=config)
@@ -274,7 +315,7 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None) 
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         with pinned_threads():
-            _compute(p, row, cache)
+            _compute(p, row, cache, keep)
         row["status"] = "ok"
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded, never fatal
         row["status"] = "failed"
@@ -331,7 +372,7 @@ class pinned_threads:
         return False
 
 
-def _compute(p, row, cache):
+def _compute(p, row, cache, keep=None):
     """The work of one run; fills ``row``'s metric columns."""
     validate(p)
     if p["kind"] == "noop":
@@ -364,7 +405,11 @@ def _compute(p, row, cache):
             row["t_render"] = sc.t_render
         else:
             row["t_render"] = 0.0
-        row.update(_solve_metrics(p, sc))
+        if sc.lights_read is not None:     # the lights actually used, with the row
+            cfg = json.loads(row["config"])
+            cfg["lights_read"] = sc.lights_read
+            row["config"] = json.dumps(cfg, sort_keys=True, default=str)
+        row.update(_solve_metrics(p, sc, keep))
 
 
 def _store_row(root, row):
@@ -397,9 +442,17 @@ def _fmt(v, spec=".2f"):
 
 
 def format_row(row) -> str:
-    """One readable line: scene, lights, mask, method, NE, IE, QF, time, status."""
+    """One readable line that says what each figure is.
+
+    Scene, lights, mask and method, then ``NE`` (mean angle between the estimated and
+    true normals, degrees), ``IE`` (L2 Lambert residual, and in % of the images'
+    dynamic range), ``QF`` (how well the mask matches the true highlights and shadows,
+    0-1), times in seconds. A data folder's row says ``read`` where a rendered scene's
+    says ``render``, and names the lights actually used when ``lights=`` picked them.
+    """
     r = {k: (None if _isna(v) else v) for k, v in dict(row).items()}
-    if r.get("data"):
+    data = bool(r.get("data"))
+    if data:
         what = f"data={Path(r['data']).name}"
     elif r.get("surface"):
         s = r["surface"]
@@ -407,10 +460,12 @@ def format_row(row) -> str:
     else:
         what = r.get("kind") or "?"
     parts = [what]
-    if r.get("lights") or r.get("n_images"):
+    if data and r.get("kind") in (None, "solve"):
+        parts.append(_lights_read_text(r))
+    elif r.get("lights") or r.get("n_images"):
         parts.append(f"lights={r.get('lights') or r.get('n_images')}")
     if r.get("kind") in (None, "solve"):
-        if r.get("data") is None:
+        if not data:
             parts.append(f"{r.get('model')} noise={_fmt(r.get('noise'), 'g')}")
         m = f"mask={r.get('mask')}"
         if r.get("weighted"):
@@ -428,18 +483,37 @@ def format_row(row) -> str:
     if r.get("status") == "failed":
         parts.append(f"FAILED: {r.get('error')}")
     elif r.get("kind") == "cond":
-        parts.append(f"cond={_fmt(r.get('cond'), '.3f')}")
+        parts.append(f"cond={_fmt(r.get('cond'), '.3f')} (condition number of the lights)")
     elif r.get("kind") == "analysis":
         parts.append(f"analysis={r.get('analysis')} payload={len(r.get('payload') or '')} chars")
     elif r.get("kind") in (None, "solve"):
-        parts.append(f"NE {_fmt(r.get('ne_mean'))} deg (median {_fmt(r.get('ne_median'))})")
-        parts.append(f"IE {_fmt(r.get('ie_l2'), '.4f')} ({_fmt(r.get('ie_rel'))} %)")
+        if r.get("ne_mean") is None:
+            parts.append("NE - (no ground truth)")
+        else:
+            parts.append(f"NE {_fmt(r.get('ne_mean'))}° mean angular error "
+                         f"(median {_fmt(r.get('ne_median'))}°)")
+        parts.append(f"IE {_fmt(r.get('ie_l2'), '.4f')} L2 Lambert residual "
+                     f"({_fmt(r.get('ie_rel'))} % of range)")
         if r.get("qf_total") is not None:
-            parts.append(f"QF hi {_fmt(r.get('qf_hi'))} sh {_fmt(r.get('qf_sh'))} "
-                         f"total {_fmt(r.get('qf_total'))}")
-    parts.append(f"{_fmt(r.get('t_total'))} s (render {_fmt(r.get('t_render'))}, "
-                 f"solve {_fmt(r.get('t_solve'))})")
+            parts.append(f"QF {_fmt(r.get('qf_total'))} mask vs true highlights/shadows "
+                         f"(hi {_fmt(r.get('qf_hi'))}, sh {_fmt(r.get('qf_sh'))})")
+    parts.append(f"{_fmt(r.get('t_total'))} s ({'read' if data else 'render'} "
+                 f"{_fmt(r.get('t_render'))}, solve {_fmt(r.get('t_solve'))})")
     return " | ".join(parts)
+
+
+def _lights_read_text(r) -> str:
+    """The lights of a data run: all of the folder's, or the ones ``lights=`` picked."""
+    try:
+        info = json.loads(r.get("config") or "{}").get("lights_read")
+    except (TypeError, ValueError):
+        info = None
+    if info:
+        return (f"lights={info['requested']} -> nearest {len(info['images'])} of "
+                f"{info['available']} read (up to {info['max_off_deg']:.1f}° off)")
+    if r.get("lights"):
+        return f"lights={r['lights']} (nearest read)"
+    return f"lights: all {r.get('n_images') or '?'} read"
 
 
 def _isna(v):

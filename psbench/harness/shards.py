@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -99,6 +100,9 @@ def _n_workers(jobs):
         n = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         n = os.cpu_count() or 1
+    # inside a SLURM job whose CPUs are not pinned (TaskPlugin=task/none): its allocation
+    if os.environ.get("SLURM_CPUS_ON_NODE", "").isdigit():
+        n = max(1, min(n, int(os.environ["SLURM_CPUS_ON_NODE"])))
     jobs = int(jobs)
     return n if jobs == -1 else max(1, n + 1 + jobs if jobs < 0 else jobs)
 
@@ -178,6 +182,32 @@ def _written(root, sweep, ids, since):
     return n
 
 
+#: SLURM job states in which a job may still write its result
+_SLURM_ACTIVE = frozenset({"PENDING", "CONFIGURING", "RUNNING", "COMPLETING", "SUSPENDED",
+                           "REQUEUED", "REQUEUE_HOLD", "REQUEUE_FED", "RESIZING", "STAGE_OUT",
+                           "SIGNALING", "PREEMPTED", "RESV_DEL_HOLD", "SPECIAL_EXIT"})
+#: seconds a SLURM job may have ended before its result file must be visible
+_SLURM_GRACE_S = 30.0
+
+
+def _slurm_ended(job_ids):
+    """``{job_id: state}`` of the jobs among ``job_ids`` that SLURM no longer runs or
+    queues, asked from ``squeue`` (``sacct``, which submitit polls, fails on clusters
+    without an accounting database); None when squeue cannot tell."""
+    import subprocess
+
+    try:
+        p = subprocess.run(["squeue", "-h", "-o", "%i %T", "--states=all", "-j",
+                            ",".join(job_ids)], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if p.returncode != 0:                   # all purged from the controller, or no answer
+        return dict.fromkeys(job_ids, "GONE") if "Invalid job id" in p.stderr else None
+    states = dict(ln.split(None, 1) for ln in p.stdout.splitlines() if " " in ln.strip())
+    return {i: states.get(i, "GONE").strip() for i in job_ids
+            if states.get(i, "GONE").strip().upper() not in _SLURM_ACTIVE}
+
+
 def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder, params, wait,
               jobs=1):
     shard_lists = split_shards(chunks, shards)
@@ -186,35 +216,63 @@ def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder
     since = time.time() - 1.0
     jobs = [ex.submit(run_shard, s, root=str(root), sweep=sweep, experiment=experiment,
                       jobs=jobs) for s in shard_lists]
-    ids = ", ".join(str(j.job_id) for j in jobs)
-    prog.stream.write(f"submitted {len(jobs)} shard job(s) with {launcher} ({ids}); logs in "
+    jids = ", ".join(str(j.job_id) for j in jobs)   # (not `ids`: the store poll uses them)
+    prog.stream.write(f"submitted {len(jobs)} shard job(s) with {launcher} ({jids}); logs in "
                       f"{folder}\n")
     if not wait:
         return None
     results, pending = [], list(jobs)
-    last_poll = 0.0
-    while pending:
-        if time.time() - last_poll > 2.0:          # progress from the store, run by run
-            last_poll = time.time()
-            n = _written(root, sweep, ids, since)
-            if n > prog.done:
-                prog.update(n - prog.done)
-        for j in list(pending):
-            if j.done():
-                pending.remove(j)
-                try:
-                    res = j.result()
-                except Exception as exc:  # noqa: BLE001 - a lost shard is reported, not fatal
-                    prog.stream.write(f"shard job {j.job_id} failed: {type(exc).__name__}: "
-                                      f"{str(exc)[:500]}\n")
-                    continue
-                results.extend(res)
-                n_done = len(results)
-                prog.failed = sum(r["status"] != "ok" for r in results)
-                if n_done > prog.done:
-                    prog.update(n_done - prog.done)
-        if pending:
-            time.sleep(0.5)
+    last_poll = last_queue = 0.0
+    # SLURM: a job is done when its result file exists and lost when squeue says it ended
+    # without one (submitit's own check needs sacct and would wait forever without it)
+    slurm, ended = launcher == "submitit_slurm", {}
+    try:
+        while pending:
+            if time.time() - last_poll > 2.0:          # progress from the store, run by run
+                last_poll = time.time()
+                n = _written(root, sweep, ids, since)
+                if n > prog.done:
+                    prog.update(n - prog.done)
+            if slurm and time.time() - last_queue > 10.0:
+                last_queue = time.time()
+                for jid, state in (_slurm_ended([str(j.job_id) for j in pending]) or {}).items():
+                    ended.setdefault(jid, (last_queue, state))
+            for j in list(pending):
+                lost = None
+                if slurm:
+                    finished = j.paths.result_pickle.exists()
+                    t_end, state = ended.get(str(j.job_id), (None, None))
+                    if not finished and t_end is not None and time.time() - t_end > _SLURM_GRACE_S:
+                        lost = f"ended ({state}) without a result; logs in {j.paths.folder}"
+                else:
+                    finished = j.done()
+                if finished or lost:
+                    pending.remove(j)
+                    try:
+                        if lost:
+                            raise RuntimeError(lost)
+                        res = j.result()
+                    except Exception as exc:  # noqa: BLE001 - a lost shard is reported, not fatal
+                        msg = f"shard job {j.job_id} failed: {type(exc).__name__}: {str(exc)[:500]}"
+                        prog.stream.write(msg + "; its stored runs are kept: run the same command "
+                                          "again to resume\n")
+                        # counted as failed (exit 1): the grid is not complete
+                        results.append({"run_id": None, "status": "failed", "error": msg,
+                                        "t_total": None})
+                        continue
+                    results.extend(res)
+                    n_done = len(results)
+                    prog.failed = sum(r["status"] != "ok" for r in results)
+                    if n_done > prog.done:
+                        prog.update(n_done - prog.done)
+            if pending:
+                time.sleep(0.5)
+    except KeyboardInterrupt:
+        if launcher != "submitit_slurm":     # local jobs are this machine's: stop them too
+            for j in pending:
+                with contextlib.suppress(Exception):
+                    j.cancel(check=False)
+        raise
     return results
 
 

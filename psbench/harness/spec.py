@@ -337,6 +337,12 @@ SETTINGS: tuple[Param, ...] = (
           "($PSBENCH_RESULTS)", hydra="${oc.env:PSBENCH_RESULTS,results}", metavar="DIR"),
     Param("sweep", "str", "adhoc", "store folder of command-line runs: "
           "<results_dir>/runs/<sweep>/", metavar="NAME"),
+    Param("out", "str", None, "folder for the run's pictures; in a -m sweep one folder per "
+          "run in it and the comparison sheet (default <results_dir>/out/<sweep>/[<run_id>])",
+          nullable=True, metavar="DIR"),
+    Param("outputs", "str", "pictures", "what a run writes to out: pictures (PNGs: input, "
+          "normals, truth, NE map, albedo, mask, weights, shaded heights), all (pictures, "
+          ".npy arrays, PLY and OBJ height meshes), none", choices=("pictures", "all", "none")),
     Param("rerun", "bool", False, "redo runs that are already stored"),
     Param("retry_failed", "bool", False, "redo stored runs whose status is failed (sweeps, "
           "experiments)"),

@@ -147,8 +147,24 @@ def _clean_temps(root, sweep, pid):
 
 
 # ---------------------------------------------------------------------------- supervision
-def run_supervised(chunk, *, root, sweep, experiment=None, config=None):
+def run_supervised(chunk, *, root, sweep, experiment=None, config=None, wrap=None,
+                   after=None):
     """Run normalized parameter dicts (a chunk sharing scenes) and store each row.
+
+    Parameters
+    ----------
+    chunk : list of dict
+        Normalized run parameters.
+    root, sweep, experiment, config
+        Where and how the rows are stored (:func:`psbench.harness.run.execute`).
+    wrap : callable, optional
+        Context manager factory entered around each run in the process computing it
+        (e.g. to show warnings as one line).
+    after : callable, optional
+        ``after(row, kept) -> str or None`` called in the process that computed a run,
+        after it and before its row is stored (``kept``: the solve's ``result`` and
+        ``scene``, see ``execute(keep=)``), e.g. to write the run's pictures; what it
+        returns comes back as the row's ``_note``. It must not raise.
 
     Returns
     -------
@@ -165,10 +181,10 @@ def run_supervised(chunk, *, root, sweep, experiment=None, config=None):
 
     todo = sorted(chunk, key=scene_key)
     if not _can_fork():
-        return [_run_here(p, root, sweep, experiment, config, {}) for p in todo]
+        return [_run_one(p, root, sweep, experiment, config, {}, wrap, after)[0] for p in todo]
     out = []
     while todo:
-        rows, started, status = _fork(todo, root, sweep, experiment, config)
+        rows, started, status = _fork(todo, root, sweep, experiment, config, wrap, after)
         out.extend(rows)
         done = {r["run_id"] for r in rows}
         todo = [p for p in todo if run_id(p) not in done]
@@ -194,14 +210,36 @@ def _failed(p, error, root, sweep, experiment, config):
     return row
 
 
-def _run_here(p, root, sweep, experiment, config, cache):
+def _row_to_store(row):
+    return {k: v for k, v in row.items() if k != "exc_kind" and not k.startswith("_")}
+
+
+def _run_one(p, root, sweep, experiment, config, cache, wrap, after, *, tolerant=False):
+    """Compute run ``p`` here and store its row; returns (row, stored). With
+    ``tolerant``, a store write failing for lack of memory returns ``stored=False``
+    (the supervisor writes it) instead of raising."""
     from .run import execute
     from .store import write_row
 
-    row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config)
+    kept = {} if after is not None else None
+    with (wrap() if wrap is not None else contextlib.nullcontext()):
+        row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config,
+                      keep=kept)
     row["exc_kind"] = _kind(row.pop("_exc", None))
-    write_row(root, {k: v for k, v in row.items() if k != "exc_kind"})
-    return row
+    if after is not None:
+        row["_note"] = after(row, kept)    # before the row: stored "ok" => its outputs
+        kept.clear()
+    try:
+        write_row(root, _row_to_store(row))
+    except MemoryError:
+        if not tolerant:
+            raise
+        return row, False
+    except Exception as err:  # noqa: BLE001 - e.g. pyarrow's ArrowMemoryError
+        if not tolerant or "memory" not in type(err).__name__.lower():
+            raise
+        return row, False
+    return row, True
 
 
 def _kind(exc):
@@ -216,7 +254,7 @@ def _kind(exc):
     return "error"
 
 
-def _fork(todo, root, sweep, experiment, config):
+def _fork(todo, root, sweep, experiment, config, wrap=None, after=None):
     """One child for ``todo``: (rows it stored, run_id it was running, exit status or
     None when it finished every run)."""
     for stream in (sys.stdout, sys.stderr):   # or the child would print them again
@@ -233,7 +271,7 @@ def _fork(todo, root, sweep, experiment, config):
             if os.getppid() != parent:
                 os._exit(1)
             _first_oom_victim()
-            _child(todo, w, root, sweep, experiment, config)
+            _child(todo, w, root, sweep, experiment, config, wrap, after)
             code = 0
         except KeyboardInterrupt:
             code = 130
@@ -256,7 +294,7 @@ def _fork(todo, root, sweep, experiment, config):
                 if not stored:                 # the child could not write (memory)
                     from .store import write_row
 
-                    write_row(root, {k: v for k, v in row.items() if k != "exc_kind"})
+                    write_row(root, _row_to_store(row))
                 rows.append(row)
                 started = None
         status = os.waitpid(pid, 0)[1]
@@ -276,23 +314,12 @@ def _fork(todo, root, sweep, experiment, config):
     return rows, started, status
 
 
-def _child(todo, w, root, sweep, experiment, config):
+def _child(todo, w, root, sweep, experiment, config, wrap, after):
     from .params import run_id
-    from .run import execute
-    from .store import write_row
 
     cache = {}
     for p in todo:
         _send(w, ("start", run_id(p)))
-        row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config)
-        row["exc_kind"] = _kind(row.pop("_exc", None))
-        try:
-            write_row(root, {k: v for k, v in row.items() if k != "exc_kind"})
-            stored = True
-        except MemoryError:
-            stored = False
-        except Exception as err:  # noqa: BLE001 - e.g. pyarrow's ArrowMemoryError
-            if "memory" not in type(err).__name__.lower():
-                raise
-            stored = False
+        row, stored = _run_one(p, root, sweep, experiment, config, cache, wrap, after,
+                               tolerant=True)
         _send(w, ("row", row, stored))

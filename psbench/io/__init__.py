@@ -62,9 +62,9 @@ from ._calibration import load_calibration, save_calibration
 from ._common import LUMA, PsbenchWarning
 from ._dataset import Dataset, read_dataset, read_lights
 from ._images import read_image, read_images, write_image
-from ._write import atomic_dir, encode_normals, write_dataset, write_outputs, write_ply
+from ._write import atomic_dir, encode_normals, write_dataset, write_obj, write_outputs, write_ply
 
 __all__ = ["Dataset", "PsbenchWarning", "read_images", "read_image", "write_image",
            "read_dataset", "write_dataset", "write_outputs", "encode_normals",
-           "write_ply", "read_lights", "atomic_dir", "LUMA", "load_calibration",
+           "write_ply", "write_obj", "read_lights", "atomic_dir", "LUMA", "load_calibration",
            "save_calibration"]

@@ -16,7 +16,7 @@ from .._fs import atomic_write
 from ._common import PsbenchWarning, json_default
 from ._images import write_image
 
-__all__ = ["atomic_dir", "write_dataset", "write_outputs", "encode_normals", "write_ply",
+__all__ = ["atomic_dir", "write_dataset", "write_outputs", "encode_normals", "write_ply", "write_obj",
            "fmt_rows"]
 
 
@@ -137,29 +137,31 @@ def write_dataset(path, images, lights, *, object_mask=None, normals=None, bits=
 
 
 # --------------------------------------------------------------------------- outputs
-@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
-def encode_normals(normals, *, object_mask=None):
-    """Fig. 5.17 colour code: [r, g, b] = [(nx+1)/2, (ny+1)/2, nz], (H, W, 3) float in [0, 1].
+NORMAL_CODES = ("field", "thesis")
 
-    nz < 0 (invalid for a visible surface) is clipped to 0; pixels outside
+
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def encode_normals(normals, *, object_mask=None, code="field"):
+    """Normals as RGB, (H, W, 3) float in [0, 1].
+
+    ``code="field"`` (default): [r, g, b] = (n + 1) / 2, the convention of DiLiGenT and
+    most photometric stereo papers (a frontal normal is (0.5, 0.5, 1)). ``code="thesis"``:
+    Fig. 5.17's [(nx + 1) / 2, (ny + 1) / 2, nz] (nz < 0 clipped to 0). Pixels outside
     ``object_mask`` (optional, (H, W) bool) are black.
     """
+    if code not in NORMAL_CODES:
+        raise PsbenchError(f"code={code!r} is not known; valid choices: {', '.join(NORMAL_CODES)}")
     n = np.asarray(normals, dtype=np.float64)
-    rgb = np.stack([(n[..., 0] + 1) / 2, (n[..., 1] + 1) / 2, n[..., 2]], axis=-1)
-    rgb = np.clip(rgb, 0.0, 1.0)
+    blue = (n[..., 2] + 1) / 2 if code == "field" else n[..., 2]
+    rgb = np.clip(np.stack([(n[..., 0] + 1) / 2, (n[..., 1] + 1) / 2, blue], axis=-1), 0.0, 1.0)
     if object_mask is not None:
         rgb[~np.asarray(object_mask, bool)] = 0.0
     return rgb
 
 
-@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
-def write_ply(path, height, *, object_mask=None, binary=True):
-    """Write a height map as a triangle mesh (PLY).
-
-    Vertices are the pixels of ``object_mask`` (default all) at ``(x, y, z) = (c - (W-1)/2, (H-1)/2 - r, height)``
-    (pixel units, psbench's frame); every 2x2 pixel block whose four corners are in
-    the object mask gives two triangles (counter-clockwise seen from +z). Vectorized.
-    """
+def _mesh(height, object_mask, quads=False):
+    """Vertices (n, 3) float32 and triangles (m, 3) int32 of a height map (see write_ply);
+    ``quads``: one (m, 4) quad (bl, br, tr, tl) per 2x2 block instead of two triangles."""
     h = np.asarray(height, dtype=np.float64)
     if h.ndim != 2:
         raise PsbenchError(f"height must have shape (H, W), got {h.shape}")
@@ -172,16 +174,29 @@ def write_ply(path, height, *, object_mask=None, binary=True):
     a, b = idx[:-1, :-1], idx[:-1, 1:]   # top-left, top-right
     cc, d = idx[1:, :-1], idx[1:, 1:]    # bottom-left, bottom-right
     quad = (a >= 0) & (b >= 0) & (cc >= 0) & (d >= 0)
+    if quads:
+        return verts, np.stack([cc[quad], d[quad], b[quad], a[quad]], axis=1).astype(np.int32)
     # y is up, so the bottom row is lower: CCW from +z is (bl, br, tr) and (bl, tr, tl)
     t1 = np.stack([cc[quad], d[quad], b[quad]], axis=1)
     t2 = np.stack([cc[quad], b[quad], a[quad]], axis=1)
-    faces = np.concatenate([t1, t2]).astype(np.int32)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
+    return verts, np.concatenate([t1, t2]).astype(np.int32)
+
+
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def write_ply(path, height, *, object_mask=None, binary=True):
+    """Write a height map as a triangle mesh (PLY).
+
+    Vertices are the pixels of ``object_mask`` (default all) at ``(x, y, z) = (c - (W-1)/2, (H-1)/2 - r, height)``
+    (pixel units, psbench's frame); every 2x2 pixel block whose four corners are in
+    the object mask gives two triangles (counter-clockwise seen from +z). Vectorized.
+    Returns ``(n_vertices, n_faces)``.
+    """
+    verts, faces = _mesh(height, object_mask)
     fmt = "binary_little_endian" if binary else "ascii"
     header = (f"ply\nformat {fmt} 1.0\ncomment psbench height map mesh (pixel units)\n"
               f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
               f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
+
     def write(f):
         f.write(header.encode("ascii"))
         if binary:
@@ -194,82 +209,195 @@ def write_ply(path, height, *, object_mask=None, binary=True):
             np.savetxt(f, verts, fmt="%.6g")
             np.savetxt(f, np.hstack([np.full((len(faces), 1), 3), faces]), fmt="%d")
 
-    atomic_write(p, write, fsync=False)
+    atomic_write(path, write, fsync=False)
+    return len(verts), len(faces)
+
+
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def write_obj(path, height, *, object_mask=None):
+    """Write a height map as a Wavefront OBJ mesh (text; the vertices of :func:`write_ply`,
+    one quad per 2x2 pixel block whose corners are in the object, counter-clockwise seen
+    from +z, 1-based). Returns ``(n_vertices, n_faces)``."""
+    verts, faces = _mesh(height, object_mask, quads=True)
+
+    def write(f):
+        f.write(b"# psbench height map mesh (pixel units; x right, y up, z height)\n")
+        # one C-level format call per block: no Python loop over vertices
+        for lo in range(0, len(verts), 1 << 16):
+            v = verts[lo:lo + (1 << 16)].astype(np.float64)
+            f.write((("v %.4f %.4f %.4f\n" * len(v)) % tuple(v.ravel())).encode("ascii"))
+        for lo in range(0, len(faces), 1 << 16):
+            t = faces[lo:lo + (1 << 16)] + 1
+            f.write((("f %d %d %d %d\n" * len(t)) % tuple(t.ravel().tolist())).encode("ascii"))
+
+    atomic_write(path, write, fsync=False)
     return len(verts), len(faces)
 
 
 @renamed_args(renamed={"mask": "object_mask"})
-def write_outputs(path, result, *, object_mask=None, ply=True, binary_ply=True):
-    """Write a solve result to a folder.
+def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=None,
+                  true_outliers=None, height=True, ply=True, obj=True, binary_ply=True,
+                  pictures=True, arrays=True, per_image=True, code="field"):
+    """Write a solve result (data and pictures) to a folder, each file atomically.
 
-    Files: ``normals.npy`` (H, W, 3) float32, ``normals.png`` (16-bit RGB, Fig. 5.17
-    code), ``albedo.npy``, ``albedo.png`` (16-bit, divided by the max albedo over the
-    mask), ``height.npy`` and ``mesh.ply`` (when the result has a height or
-    :func:`psbench.integrate` is available), ``valid.npy`` + ``valid/NNN.png``
-    (0/255, True = used), ``weights.npy`` + ``weights/NNN.png`` (16-bit, divided by
-    the max weight), likewise ``ring_weights`` (WPS). Each file is written to a temp name and renamed.
+    Data: ``normals.npy`` (H, W, 3) float32, ``albedo.npy``, ``valid.npy`` (k, H, W)
+    bool (True = used), ``weights.npy`` / ``ring_weights.npy`` when the result has
+    them, ``ne.npy`` (per-pixel angular error in degrees, NaN outside the object) with
+    ``truth_normals``, ``height.npy`` with ``mesh.ply`` and ``mesh.obj``.
+
+    Pictures (8-bit PNG): ``normals.png`` (``code="field"``: RGB = (n + 1) / 2 as
+    DiLiGenT; ``"thesis"``: Fig. 5.17), ``albedo.png`` (99th percentile over the object
+    = white), ``object_mask.png``, ``input.png`` (with ``images``: the image lit nearest
+    the camera axis), ``truth.png`` and ``error.png`` (NE map, magma over 0-20 deg with a
+    colour bar; ``ne_map.png`` the same map without bar and title) with
+    ``truth_normals``, ``mask.png`` (every image with the observations
+    the mask excluded coloured; TP/FP/FN with ``true_outliers``), ``weights.png`` /
+    ``ring_weights.png`` (viridis with a colour bar), ``height.png`` (shaded oblique view
+    of the heights). ``per_image=True`` also writes ``valid/NNN.png`` (0/255) and
+    ``weights/NNN.png`` (16-bit, divided by the max) for every image.
 
     Parameters
     ----------
     path : str or Path
     result : psbench Result (or any object with ``.normals`` and optional
-        ``.albedo .height .valid .weights .ring_weights``)
+        ``.albedo .height .valid .weights .ring_weights .lights``)
     object_mask : (H, W) bool, optional
         The object region (default all).
+    images : (k, H, W) float, optional
+        The input images (``input.png`` and the background of ``mask.png``).
+    truth_normals : (H, W, 3), optional
+        Ground truth: ``truth.png``, ``ne.npy``, ``error.png``.
+    true_outliers : (k, H, W) bool, optional
+        True highlights and shadows (rendered scenes): colours ``mask.png`` as
+        TP / FP / FN.
+    height : bool
+        Integrate the normals when the result holds no heights (``height.npy``,
+        meshes, ``height.png``); False writes no heights.
+    ply, obj, binary_ply : bool
+        Which meshes to write.
+    pictures : bool
+        False writes the ``.npy`` data and meshes only.
+    arrays : bool
+        False writes no ``.npy`` file (pictures and meshes only).
+    per_image : bool
+        Also one PNG per image for ``valid`` and the weights.
+    code : {"field", "thesis"}
+        Colour code of ``normals.png`` and ``truth.png``.
+
+    Returns
+    -------
+    list of str
+        The written files, relative to ``path``.
     """
+    from . import _pictures as P
+
     out = Path(path)
     out.mkdir(parents=True, exist_ok=True)
     n = np.asarray(result.normals, dtype=np.float32)
     H, W = n.shape[:2]
     m = as_mask(object_mask, (H, W), "object_mask")
+    if code not in NORMAL_CODES:
+        raise PsbenchError(f"code={code!r} is not known; valid choices: {', '.join(NORMAL_CODES)}")
     written = []
 
     def save_npy(name, arr):
+        if not arrays:
+            return
         atomic_write(out / name, lambda fh: np.save(fh, arr), fsync=False)
         written.append(name)
 
-    def save_png(name, img, bits=16):
-        dst = out / name
-        tmp = dst.with_name(".tmp-" + dst.name)
-        write_image(tmp, img, bits=bits)
-        os.replace(tmp, dst)
-        written.append(name)
+    def save_pic(name, rgb):
+        if pictures:
+            P.write_png(out / name, rgb)
+            written.append(name)
 
     save_npy("normals.npy", n)
-    save_png("normals.png", encode_normals(n, object_mask=m))
+    save_pic("normals.png", P.normal_rgb(n, m, code=code))
+    save_pic("object_mask.png", (m * 255).astype(np.uint8))
     alb = getattr(result, "albedo", None)
     if alb is not None:
         alb = np.asarray(alb, dtype=np.float32)
         save_npy("albedo.npy", alb)
-        mx = float(alb[m].max()) if m.any() else 0.0
-        save_png("albedo.png", np.where(m, alb / mx, 0) if mx > 0 else np.zeros_like(alb))
+        save_pic("albedo.png", P.gray(alb, m))
+    imgs = None if images is None else np.asarray(images, dtype=np.float32)
+    if imgs is not None:
+        save_pic("input.png", P.gray(imgs[_frontal(result, imgs)], m))
+    if truth_normals is not None:
+        from ..metrics import normal_error_map
+
+        t = np.asarray(truth_normals, dtype=np.float32)
+        ne = np.where(m, normal_error_map(n, t), np.nan).astype(np.float32)
+        save_npy("ne.npy", ne)
+        save_pic("truth.png", P.normal_rgb(t, m, code=code))
+        mean = float(np.nanmean(ne)) if m.any() else float("nan")
+        save_pic("ne_map.png", P.ne_map(ne, m))
+        save_pic("error.png", P.error_picture(ne, m, title=f"mean NE {mean:.2f} deg "
+                                              f"(angle to the true normal)"))
+    _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_image,
+                 written)
     hgt = getattr(result, "height", None)
-    if hgt is None:
+    if hgt is None and height:
         try:
             from ..integrate import integrate
             hgt = integrate(n, object_mask=m)
-        except Exception as e:  # integrate not available or failed: skip the mesh
+        except Exception as e:  # noqa: BLE001 - integration failed: no heights, say why
             warnings.warn(f"no height written: {e}", PsbenchWarning, stacklevel=2)
-    if hgt is not None:
+    if hgt is not None and height:
         hgt = np.asarray(hgt, dtype=np.float32)
         save_npy("height.npy", hgt)
         if ply:
             write_ply(out / "mesh.ply", hgt, object_mask=m, binary=binary_ply)
             written.append("mesh.ply")
-    for name, scale in (("valid", None), ("weights", "max"), ("ring_weights", "max")):
+        if obj:
+            write_obj(out / "mesh.obj", hgt, object_mask=m)
+            written.append("mesh.obj")
+        if pictures:
+            from ._relief import height_picture
+
+            save_pic("height.png", P.titled(height_picture(hgt, m),
+                                            "heights integrated from the normals (to scale)"))
+    return written
+
+
+def _frontal(result, images):
+    """Index of the image lit nearest the camera axis (fewest shadows), else 0."""
+    lay = getattr(result, "lights", None)
+    d = getattr(lay, "directions", None)
+    if d is None or len(d) != len(images):
+        return 0
+    return int(np.argmax(np.asarray(d)[:, 2]))
+
+
+def _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_image, written):
+    """valid / weights / ring_weights: data, overview pictures and per-image PNGs."""
+    from . import _pictures as P
+
+    for name in ("valid", "weights", "ring_weights"):
         a = getattr(result, name, None)
-        if a is None:
+        if a is None or np.ndim(a) != 3:
             continue
         a = np.asarray(a)
-        if a.ndim != 3:
-            continue
         save_npy(f"{name}.npy", a)
-        (out / name).mkdir(exist_ok=True)
         if name == "valid":
-            for i, v in enumerate(a):
-                save_png(f"{name}/{i + 1:03d}.png", (v.astype(np.uint8) * 255), bits=8)
+            base = imgs if imgs is not None and imgs.shape == a.shape else np.full(a.shape, 0.6)
+            to = None if true_outliers is None else np.asarray(true_outliers, bool)
+            if to is not None and to.shape != a.shape:
+                raise PsbenchError(f"true_outliers must have shape {a.shape}, got {to.shape}")
+            save_pic("mask.png", P.valid_picture(base, a, m, truth=to))
         else:
-            mx = float(a.max()) or 1.0
-            for i, v in enumerate(a):
-                save_png(f"{name}/{i + 1:03d}.png", v / mx)
-    return written
+            save_pic(f"{name}.png", P.weights_picture(
+                a, m, title="ring weight" if name == "ring_weights" else "weight",
+                vmax=1.0 if name == "ring_weights" else None))
+        if not per_image:
+            continue
+        (out / name).mkdir(exist_ok=True)
+        mx = float(a.max()) or 1.0
+        for i, v in enumerate(a):
+            dst = out / name / f"{i + 1:03d}.png"
+            tmp = dst.with_name(".tmp-" + dst.name)
+            if name == "valid":
+                write_image(tmp, v.astype(np.uint8) * 255, bits=8)
+            else:
+                write_image(tmp, v / mx)
+            os.replace(tmp, dst)
+            written.append(f"{name}/{i + 1:03d}.png")

@@ -157,21 +157,21 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
         axm[0][j].imshow(sc.images[li], cmap="gray")
         axm[0][j].set_title(name, fontsize=14)
         axn[0][j].set_title(name, fontsize=14)
-        axr[0][j].imshow(encode_normals(surf.normals, surf.mask))
+        axr[0][j].imshow(encode_normals(surf.normals, surf.object_mask))
         axr[0][j].set_title(name, fontsize=14)
         for i, mask in enumerate(MASKS):
             try:
-                res = ps.solve(sc.images, lay, mask=mask, object_mask=surf.mask, seed=seed)
+                res = ps.solve(sc.images, lay, mask=mask, object_mask=surf.object_mask, seed=seed)
             except Exception as exc:  # noqa: BLE001
                 log(f"panels: {name} {mask} failed: {exc}")
                 continue
             ne = normal_error_map(res.normals, surf.normals)
-            ne = np.where(surf.mask, ne, np.nan)
+            ne = np.where(surf.object_mask, ne, np.nan)
             table.setdefault(LABELS.get(mask, mask), {})[name] = float(np.nanmean(ne))
             flagged = ~np.asarray(res.valid, bool)[li]
-            axm[i + 1][j].imshow(overlay(sc.images[li], flagged, truth[li], surf.mask))
-            img = _ne_image(axn[i][j], ne, surf.mask)
-            axr[i + 1][j].imshow(encode_normals(res.normals, surf.mask))
+            axm[i + 1][j].imshow(overlay(sc.images[li], flagged, truth[li], surf.object_mask))
+            img = _ne_image(axn[i][j], ne, surf.object_mask)
+            axr[i + 1][j].imshow(encode_normals(res.normals, surf.object_mask))
             if j == 0:
                 for ax in (axm[i + 1][0], axn[i][0], axr[i + 1][0]):
                     ax.set_ylabel(LABELS.get(mask, mask), fontsize=13)
@@ -205,10 +205,10 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
                             {"method": "wps", "weight": "eZsourceZsurface"})):
         try:
             if idx is None:
-                res = ps.solve(sc.images, both, mask="None", object_mask=surf.mask, **kw)
+                res = ps.solve(sc.images, both, mask="None", object_mask=surf.object_mask, **kw)
             else:
                 res = ps.solve(sc.images[idx], both.subset(idx), mask="None",
-                               object_mask=surf.mask)
+                               object_mask=surf.object_mask)
             cases.append((label, res))
         except Exception as exc:  # noqa: BLE001
             log(f"panels: sombrero2 {label} failed: {exc}")
@@ -217,8 +217,8 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
         fig, axes = plt.subplots(1, len(cases), figsize=(3.0 * len(cases) + 1.6, 3.6),
                                  squeeze=False, layout="constrained")
         for ax, (label, res) in zip(axes[0], cases):
-            ne = np.where(surf.mask, normal_error_map(res.normals, surf.normals), np.nan)
-            img = _ne_image(ax, ne, surf.mask)
+            ne = np.where(surf.object_mask, normal_error_map(res.normals, surf.normals), np.nan)
+            img = _ne_image(ax, ne, surf.object_mask)
             ax.set_title(f"{label}\nmean NE {np.nanmean(ne):.2f} deg", fontsize=13)
             wps_rows.append({"method": label, "mean NE (deg)": f"{np.nanmean(ne):.2f}",
                              "median NE (deg)": f"{np.nanmedian(ne):.2f}"})
@@ -230,11 +230,11 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
         heights = [("true heights", surf.height)]
         for label, res in cases[2:]:
             try:
-                heights.append((f"integrated from {label}", integrate(res.normals, surf.mask)))
+                heights.append((f"integrated from {label}", integrate(res.normals, object_mask=surf.object_mask)))
             except Exception as exc:  # noqa: BLE001
                 log(f"panels: integrate {label} failed: {exc}")
         fig = plt.figure(figsize=(5.0 * len(heights), 4.6))
-        _height_render(fig, heights, surf.mask, size, log)
+        _height_render(fig, heights, surf.object_mask, size, log)
         fig.suptitle("sombrero2 heights, shaded 3D render (colour = height)", fontsize=15,
                      y=1.04)
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92, wspace=0)

@@ -11,8 +11,12 @@ Named surfaces are plug-ins (:class:`psbench.registry.SurfaceSpec`, entry-point 
 lists every registered name. psbench's own, one module each:
 
 ``semisphere``
-    A hemisphere of radius ``0.45 * size`` centred in the frame; the object mask is
-    its disc, the background (height 0) is not part of the object. Analytic normals.
+    A hemisphere of radius ``0.45 * size`` centred in the frame, standing on a ground
+    plane (height 0) that is part of the object mask, so its cast shadows count (the
+    thesis's "errors ... around the sphere"). Analytic normals.
+``semisphere_disc``
+    The same hemisphere with the object mask its disc only (the background is not part
+    of the object).
 ``spheres``
     Five non-overlapping hemispheres of different radii standing on a flat
     plane (height 0). The plane is part of the object mask, so the spheres cast

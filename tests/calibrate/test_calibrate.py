@@ -115,7 +115,7 @@ def test_hot_pixels_removed():
 def test_sphere_light_directions():
     rig = SimRig(RigConfig.ideal(size=128, misplace_deg=3.0, sphere_m=400.0))
     from psbench.surfaces import make_surface
-    mask = make_surface("semisphere", size=128).object_mask
+    mask = make_surface("semisphere_disc", size=128).object_mask
     sph = frames(rig, "sphere")
     d, n, pts = cal.light_directions_from_sphere(sph, object_mask=mask)
     err = _ang(d, rig.directions)
@@ -128,7 +128,7 @@ def test_sphere_light_directions():
 def test_sphere_light_positions_near():
     rig = SimRig(RigConfig.ideal(size=128, distance=5 * 128, misplace_deg=2.0))
     from psbench.surfaces import make_surface
-    mask = make_surface("semisphere", size=128).object_mask
+    mask = make_surface("semisphere_disc", size=128).object_mask
     d, n, _ = cal.light_directions_from_sphere(frames(rig, "sphere"), object_mask=mask)
     cx, cy, R = cal.sphere_geometry(mask)
     P = cal.light_positions(d, n, rig.distance, center=(cx, cy), radius=R)

@@ -110,7 +110,7 @@ def test_entry_point_registers_module_and_grid(tiny):
     assert tiny.module.__name__ == "tinyexp.tiny"
     assert tiny.grid.name == "tiny.yaml" and tiny.TITLE == "Tiny: NE of Th vs None"
     names = T.names()
-    assert names[-1] == "tiny" and names[0] == "table2_1" and len(names) == 18
+    assert names[-1] == "tiny" and names[0] == "table2_1" and len(names) == 19
     assert "tiny" in gate.gated() and "table5_3" in gate.gated()
 
 
@@ -178,6 +178,7 @@ def test_every_builtin_experiment_keeps_the_contract():
 
     names = [n for n in T.names() if n.startswith(("table", "fig"))]
     assert len(names) == 17
+    names.append("interpretations")
     for name in names:
         mod = T.experiment_module(name)
         assert isinstance(mod, types.ModuleType) and mod.__name__ == f"psbench.experiments.{name}"

@@ -40,9 +40,11 @@ def test_single_run_prints_row_and_keeps_cwd_clean(tmp_path):
     r = psbench("size=32", "surface=semisphere", "lights=30x8+60x8", "noise=0.1", "mask=None",
                 cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    line = r.stdout.strip().splitlines()[-1]
-    for part in ("semisphere", "30x8+60x8", "mask=None", "NE ", "IE ", "QF hi", " s ("):
+    line = next(ln for ln in r.stdout.splitlines() if "| stored " in ln)
+    for part in ("semisphere", "30x8+60x8", "mask=None", "NE ", "mean angular error", "IE ",
+                 "Lambert residual", "QF ", "(hi ", " s (render "):
         assert part in line, line
+    assert "pictures (pictures" in r.stdout.splitlines()[-1]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results"]   # no outputs/, logs
     df = _rows(tmp_path / "results")
     assert len(df) == 1 and df.loc[0, "status"] == "ok" and df.loc[0, "n_images"] == 16

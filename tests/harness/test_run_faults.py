@@ -2,6 +2,7 @@
 store, a memory limit, and launch-independent numbers (issue 11 S2-S5, C2, D1; issue
 12 item 3). Subprocesses at tiny sizes; ``kind=noop`` runs where the numbers do not
 matter."""
+import contextlib
 import os
 import resource
 import shutil
@@ -97,7 +98,7 @@ def test_killed_run_in_an_experiment_pool(tmp_path):
 def test_same_run_single_and_in_a_sweep_bit_identical(tmp_path):
     """D1: one BLAS thread everywhere: ``psbench`` and a ``psbench -m`` worker store
     the very same numbers for the same run."""
-    args = ["size=96", "lights=30x8+60x8", "weighted=true"]
+    args = ["size=96", "lights=30x8+60x8", "weighted=true", "outputs=none"]
     a = psbench(*args, "mask=Th-Hi-Re-Sh", f"results_dir={tmp_path / 'a'}", cwd=tmp_path)
     assert a.returncode == 0, a.stderr
     b = psbench("-m", *args, "mask=Th-Hi-Re-Sh,Th", f"results_dir={tmp_path / 'b'}",
@@ -114,7 +115,7 @@ def test_runs_compute_with_one_blas_thread(monkeypatch):
     from psbench.harness import run as R
 
     seen = []
-    monkeypatch.setattr(R, "_compute", lambda p, row, cache: seen.extend(
+    monkeypatch.setattr(R, "_compute", lambda p, row, cache, keep=None: seen.extend(
         i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"))
     with threadpoolctl.threadpool_limits(limits=2):
         row = R.execute(R.normalize({"kind": "noop"}))
@@ -131,11 +132,17 @@ def test_ctrl_c_one_line_no_traceback_no_temp(tmp_path, args):
     proc = subprocess.Popen(CMD + args + [f"results_dir={tmp_path}"], cwd=tmp_path,
                             env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
+    # until run processes compute: a single run's child, or a run process under each
+    # pool worker (a worker still starting up has Python's own SIGINT handler for a moment)
+    pool = "-m" in args or any(a.startswith("+experiment") for a in args)
+    want = min(2, len(os.sched_getaffinity(0))) if pool else 1
     t0 = time.time()
-    while time.time() - t0 < 120:               # until run processes compute
-        kids = psutil.Process(proc.pid).children(recursive=True)
-        if any(k.ppid() != proc.pid or "-m" not in args for k in kids):
-            break
+    while time.time() - t0 < 120:
+        with contextlib.suppress(psutil.Error):
+            kids = psutil.Process(proc.pid).children(recursive=True)
+            busy = {k.ppid() for k in kids if k.ppid() != proc.pid} if pool else kids
+            if len(busy) >= want:
+                break
         time.sleep(0.2)
     time.sleep(2.0)
     os.killpg(proc.pid, signal.SIGINT)
@@ -222,3 +229,29 @@ def test_lost_pool_worker_restarts_the_pool(tmp_path):
     assert "restarting the pool" in err
     df = store.read_store(tmp_path / "res")
     assert len(df) == 8 and set(df["status"]) == {"ok"}
+
+
+def test_outputs_written_by_the_run_process_before_its_row(tmp_path):
+    """A single run's pictures are written by the supervised process that computed the
+    run, before the row is stored: a stored "ok" row implies its outputs exist."""
+    from psbench.harness.params import normalize, run_id
+    from psbench.harness.supervise import run_supervised
+
+    p = normalize({"surface": "spheres", "size": 24, "lights": "30x8"})
+    row_file = store.run_path(tmp_path, "s", run_id(p))
+    seen = {}
+
+    def after(row, kept):
+        (tmp_path / "marker").write_text(f"{os.getpid()} {row['status']} "
+                                         f"{row_file.exists()} {sorted(kept)}")
+        return "outputs written"
+
+    row = run_supervised([p], root=tmp_path, sweep="s", after=after)[0]
+    pid, status, existed, kept = (tmp_path / "marker").read_text().split(" ", 3)
+    seen.update(pid=int(pid), status=status, existed=existed, kept=kept)
+    assert seen["status"] == "ok" and seen["existed"] == "False"   # before the row
+    assert "'result'" in seen["kept"] and "'scene'" in seen["kept"]
+    assert row["_note"] == "outputs written" and row_file.is_file()
+    if sys.platform.startswith("linux"):
+        assert seen["pid"] != os.getpid()                           # in the run's process
+    assert "_note" not in store.read_store(tmp_path).columns

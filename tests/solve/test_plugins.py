@@ -143,7 +143,9 @@ def test_unknown_names_list_plugins(scene, plugins):
 
 def test_builtins_listed_without_plugins():
     assert MASKS == ("None", "Th", "NL", "xNL", "SS", "Re", "CS", "Hi", "Sh", "CJ", "RA")
-    assert METHODS == ("ps", "fwlse", "wps")
+    assert METHODS[:3] == ("ps", "fwlse", "wps")          # the thesis's, then the others
+    assert {"robust", "trim", "l1", "sbl", "rpca", "huber", "cauchy", "tukey",
+            "tsfit"} <= set(METHODS)
 
 
 # ------------------------------------------------------------- a real entry point

@@ -223,7 +223,7 @@ def test_every_pixel_keeps_three_observations():
 def ts_semisphere():
     # 128 px: the weighting kernels (disk radius 7, Gaussian sigma 3, 15 x 15) were
     # chosen for 512 px images; much smaller images make them coarse
-    surf = ps.make_surface("semisphere", size=128)
+    surf = ps.make_surface("semisphere_disc", size=128)
     lay = ps.layout("45x8")
     return surf, lay, ps.render(surf, lay, model="ts")
 

@@ -9,6 +9,8 @@ from psbench.surfaces import SOMBRERO_LAMBDA, normals_from_height, pixel_grid
 @pytest.mark.parametrize("size", [64, 128])
 @pytest.mark.parametrize("name", ps.SURFACES)
 def test_every_surface_is_well_formed_and_deterministic(name, size):
+    if name.startswith("cartridge"):
+        size *= 4                     # its marks need >= 251 px over the 10 mm field of view
     s = ps.make_surface(name, size=size)
     assert s.height.shape == (size, size) and s.height.dtype == np.float32
     assert s.object_mask.shape == (size, size) and s.object_mask.dtype == bool
@@ -50,6 +52,28 @@ def test_semisphere_is_a_hemisphere():
     R = 0.45 * size
     inside = s.object_mask & (r2 < (0.95 * R) ** 2)
     np.testing.assert_allclose(s.height[inside], np.sqrt(R ** 2 - r2[inside]), rtol=1e-4, atol=1e-3)
+    # the ground plane is part of the object (flat, height 0, normal +z); the disc-only
+    # scene has the same arrays with the disc as object mask
+    assert s.object_mask.all()
+    out = r2 > (1.05 * R) ** 2
+    assert (s.height[out] == 0).all() and (s.normals[out] == (0, 0, 1)).all()
+    d = ps.make_surface("semisphere_disc", size=size)
+    assert d.name == "semisphere_disc"
+    np.testing.assert_array_equal(d.object_mask, r2 < R ** 2)
+    np.testing.assert_array_equal(d.height, s.height)
+    np.testing.assert_array_equal(d.normals, s.normals)
+    assert ps.make_surface("semisphere", size=size, plane=False).object_mask.sum() == d.object_mask.sum()
+
+
+def test_semisphere_plane_receives_cast_shadows_that_count():
+    # at 60 deg the hemisphere shades the plane around it: those observations are on
+    # the object (they count in NE); on the disc-only scene they are not
+    s = ps.make_surface("semisphere", size=96)
+    d = ps.make_surface("semisphere_disc", size=96)
+    sc = ps.render(s, ps.layout("60x4"))
+    on_plane = sc.cast_shadow & ~d.object_mask[None]
+    assert on_plane.any(axis=0).mean() > 0.02
+    assert not (ps.render(d, ps.layout("60x4")).cast_shadow & ~d.object_mask[None]).any()
 
 
 @pytest.mark.parametrize("name", ["mozart", "penny", "spheres"])

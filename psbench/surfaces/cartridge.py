@@ -1,0 +1,23 @@
+"""``cartridge``: the head of a fired cartridge case (Chapter 7), for forensic use.
+
+The generator and its ground truth (regions, pose, heights in micrometres) live in
+:mod:`psbench.forensic.cartridge`; ``make_surface("cartridge", size=2048, gun=3, case=5)``
+passes ``gun``, ``case``, ``pixel_size`` and ``finish`` through.
+"""
+from __future__ import annotations
+
+from ..registry import SurfaceSpec
+
+__all__ = ["SURFACE"]
+
+
+def cartridge(size=2048, **kwargs):
+    """See :func:`psbench.forensic.cartridge.make_cartridge`."""
+    from ..forensic.cartridge import make_cartridge
+
+    return make_cartridge(size, **kwargs)
+
+
+SURFACE = SurfaceSpec(name="cartridge", func=cartridge, aliases=("cartridge_case",),
+                      help="fired cartridge case head (Chapter 7): firing pin, breech-face "
+                           "marks, ejector mark, headstamp; gun=, case=, pixel_size= (um)")
