@@ -271,7 +271,7 @@ CAPTURE = [
     ("gamma-zero", ["gamma=0"], ["gamma"]),
     ("unknown-key", ["colour=red"], ["colour"]),
     ("rig-unknown", ["rig=laser"], ["rig", "sim"]),
-    ("no-out", [], ["out=DIR"]),
+    ("out-empty", ["out="], ["out", "folder path"]),
     ("not-key-value", ["--fast"], ["--fast", "key=value"]),
 ]
 
@@ -280,7 +280,7 @@ CAPTURE = [
 def test_capture_cli_refuses_with_one_line_exit_2(tmp_path, capsys, name, args, words):
     from psbench.capture.cli import main
 
-    out_arg = [] if name == "no-out" else [f"out={tmp_path / 'cap'}"]
+    out_arg = [] if name == "out-empty" else [f"out={tmp_path / 'cap'}"]
     code, out, err = _run_main(capsys, main, ["rig=sim", *out_arg, *args])
     assert code == 2, (out, err)
     assert "Traceback" not in out + err

@@ -2,13 +2,17 @@
 
 Arguments are ``key=value`` pairs (Hydra style, no dashes)::
 
+    psbench-capture rig=sim                    # -> results/captures/sim_<UTC time>/
     psbench-capture rig=sim out=DIR surface=penny lights=30x4+60x4 size=128
     psbench-capture rig=serial port=/dev/ttyUSB0 camera=0 out=DIR lights=30x8+60x8 current=350
 
 Keys
 ----
 rig        ``sim`` (default) or ``serial``
-out        output folder (required; must not exist unless ``overwrite=true``)
+out        output folder; must not exist unless ``overwrite=true`` (default: a new
+           folder ``<results>/captures/<rig>_<UTC time>/``, where ``<results>`` is
+           ``$PSBENCH_RESULTS`` or ``results`` in the current directory, as for
+           ``psbench``). The folder written is printed on stdout.
 lights     nominal LED layout in ring notation (default ``30x4+60x4``); LED i of the
            controller is light i of the layout (``leds=3,4,5`` to remap)
 current    LED current in mA (default 350)
@@ -80,6 +84,22 @@ def _typed(args, key, typ, default=None, *, low=None, strict=False):
     return v
 
 
+def default_out(rig, *, now=None):
+    """The default capture folder: ``<results>/captures/<rig>_<UTC time>`` (a suffix
+    ``-2``, ``-3``, ... when a capture of the same second exists)."""
+    import datetime as _dt
+    import os
+    from pathlib import Path
+
+    now = now or _dt.datetime.now(_dt.timezone.utc)
+    root = Path(os.environ.get("PSBENCH_RESULTS") or "results").expanduser()  # as psbench's
+    base = root / "captures" / f"{rig}_{now.strftime('%Y%m%dT%H%M%SZ')}"
+    out, n = base, 2
+    while out.exists():
+        out, n = base.with_name(f"{base.name}-{n}"), n + 1
+    return out
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
@@ -104,9 +124,13 @@ def _run(args):
     from .sequence import capture, capture_all
 
     rig = args.pop("rig", "sim")
+    if rig not in ("sim", "serial"):
+        raise PsbenchError(f"rig={rig!r} is not known; valid choices: sim, serial")
     out = args.pop("out", None)
-    if not out:
-        raise PsbenchError("out=DIR is required")
+    if out is not None and not out.strip():
+        raise PsbenchError("out='': expected a folder path (or leave out= away for the default)")
+    if out is None:
+        out = default_out(rig)
     lights = args.pop("lights", "30x4+60x4")
     current = _typed(args, "current", int, 350, low=0, strict=True)
     progress = _bool(args.pop("progress", "true"), "progress")
@@ -133,8 +157,6 @@ def _run(args):
                                    targets=tlist)
         print(path)
         return 0
-    if rig != "serial":
-        raise PsbenchError(f"rig={rig!r} is not known; valid choices: sim, serial")
     from .camera import FolderCamera, OpenCVCamera
     port = args.pop("port", None)
     if not port:
