@@ -93,6 +93,10 @@ prepare(root, scale) -> None
 cell_kind(part, column) -> str
     Tolerance class of a cell in the CI gate (``ne``, ``cond``, ``qf``, ``ie``,
     ``percent``, ``time``, ``threshold``, ``ratio``; default ``ne``).
+IN_TOTALS : bool
+    Whether the report index counts this experiment's verdicts in its totals (default
+    True; False for an experiment that re-decides other pages' claims, such as
+    ``interpretations``).
 HIDDEN_PARTS : set of str
     Parts too long for a page table (plotted and listed in ``data/<name>.csv`` only).
 cell_unit(part, column) -> str, column_label(part, column) -> str, TABLE_AXES, PART_TITLES

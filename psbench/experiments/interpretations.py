@@ -31,6 +31,7 @@ from psbench.report.aggregates import long_frame, parse_json
 from psbench.report.verdicts import (INCONCLUSIVE, NOT_SUPPORTED, SUPPORTED, Verdict, every,
                                      nodata)
 
+IN_TOTALS = False   # re-decides other pages' claims: listed, not counted in the report totals
 TITLE = "Claims by interpretation: thesis claim x reading of the text"
 AVERAGES = ("Each cell re-decides one thesis claim with the rules of its own experiment "
             "(table5_3, table5_5, table5_6, fig4_4, fig4_10) on the runs of one reading; "

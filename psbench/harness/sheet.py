@@ -142,7 +142,7 @@ def build_sheet(runs, out_dir, *, axes=None, title="psbench comparison", stem="c
 
     from ..io._pictures import write_png
     from ..report.html import Link, to_html, write_atomic
-    from .sweep import rank, varying
+    from ._rows import rank, varying
 
     out_dir = Path(out_dir)
     runs = [(dict(r), Path(d)) for r, d in runs]

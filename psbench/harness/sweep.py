@@ -21,6 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from ._rows import _num, rank, varying
+
 try:  # Hydra is a dependency; the class stays importable without it for the helpers
     from hydra.experimental.callback import Callback
 except ImportError:  # pragma: no cover
@@ -63,40 +65,6 @@ def _read(path):
             continue
     head = recs[0] if recs and recs[0].get("header") else {}
     return head, [r for r in recs if not r.get("header")]
-
-
-def _num(v):
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
-def rank(rows):
-    """Rows sorted best first: ok runs by mean NE (runs without NE by IE %), failed last."""
-    def key(r):
-        ok = r.get("status") == "ok"
-        ne, ie = _num(r.get("ne_mean")), _num(r.get("ie_rel"))
-        return (not ok, ne is None, ne if ne is not None else (ie if ie is not None else 1e300))
-    return sorted(rows, key=key)
-
-
-_SKIP = {"run_id", "sweep", "experiment", "kind", "config", "n_images", "size"}
-
-
-def varying(rows) -> list[str]:
-    """Run parameters whose values differ between ``rows`` (the sweep's axes)."""
-    from .spec import param_names
-
-    out = []
-    for name in param_names():
-        if name in _SKIP:
-            continue
-        vals = {json.dumps(r.get(name), default=str, sort_keys=True) for r in rows}
-        if len(vals) > 1:
-            out.append(name)
-    return out or ["mask", "method"]
 
 
 def _cell(v):

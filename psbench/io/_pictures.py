@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import PsbenchError
+from .._deprecate import renamed_args
 from .._fs import atomic_write
 from ._common import cv2 as _cv2
 
@@ -35,11 +37,31 @@ _CMAPS = {"magma": "COLORMAP_MAGMA", "viridis": "COLORMAP_VIRIDIS",
 
 
 # --------------------------------------------------------------------------- basics
+NORMAL_CODES = ("field", "thesis")
+
+
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def encode_normals(normals, *, object_mask=None, code="field"):
+    """Normals as RGB, (H, W, 3) float in [0, 1].
+
+    ``code="field"`` (default): [r, g, b] = (n + 1) / 2, the convention of DiLiGenT and
+    most photometric stereo papers (a frontal normal is (0.5, 0.5, 1)). ``code="thesis"``:
+    Fig. 5.17's [(nx + 1) / 2, (ny + 1) / 2, nz] (nz < 0 clipped to 0). Pixels outside
+    ``object_mask`` (optional, (H, W) bool) are black.
+    """
+    if code not in NORMAL_CODES:
+        raise PsbenchError(f"code={code!r} is not known; valid choices: {', '.join(NORMAL_CODES)}")
+    n = np.asarray(normals, dtype=np.float64)
+    blue = (n[..., 2] + 1) / 2 if code == "field" else n[..., 2]
+    rgb = np.clip(np.stack([(n[..., 0] + 1) / 2, (n[..., 1] + 1) / 2, blue], axis=-1), 0.0, 1.0)
+    if object_mask is not None:
+        rgb[~np.asarray(object_mask, bool)] = 0.0
+    return rgb
+
+
 def normal_rgb(normals, object_mask=None, *, code="field"):
     """Normals as 8-bit RGB: ``field`` (DiLiGenT) (n + 1) / 2, or ``thesis`` (Fig. 5.17)
     [(nx + 1) / 2, (ny + 1) / 2, nz]. Outside ``object_mask`` black."""
-    from ._write import encode_normals
-
     return _u8(encode_normals(normals, object_mask=object_mask, code=code))
 
 

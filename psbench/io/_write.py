@@ -15,6 +15,7 @@ from .._deprecate import renamed_args
 from .._fs import atomic_write
 from ._common import PsbenchWarning, json_default
 from ._images import write_image
+from ._pictures import NORMAL_CODES, encode_normals
 
 __all__ = ["atomic_dir", "write_dataset", "write_outputs", "encode_normals", "write_ply", "write_obj",
            "fmt_rows"]
@@ -137,28 +138,6 @@ def write_dataset(path, images, lights, *, object_mask=None, normals=None, bits=
 
 
 # --------------------------------------------------------------------------- outputs
-NORMAL_CODES = ("field", "thesis")
-
-
-@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
-def encode_normals(normals, *, object_mask=None, code="field"):
-    """Normals as RGB, (H, W, 3) float in [0, 1].
-
-    ``code="field"`` (default): [r, g, b] = (n + 1) / 2, the convention of DiLiGenT and
-    most photometric stereo papers (a frontal normal is (0.5, 0.5, 1)). ``code="thesis"``:
-    Fig. 5.17's [(nx + 1) / 2, (ny + 1) / 2, nz] (nz < 0 clipped to 0). Pixels outside
-    ``object_mask`` (optional, (H, W) bool) are black.
-    """
-    if code not in NORMAL_CODES:
-        raise PsbenchError(f"code={code!r} is not known; valid choices: {', '.join(NORMAL_CODES)}")
-    n = np.asarray(normals, dtype=np.float64)
-    blue = (n[..., 2] + 1) / 2 if code == "field" else n[..., 2]
-    rgb = np.clip(np.stack([(n[..., 0] + 1) / 2, (n[..., 1] + 1) / 2, blue], axis=-1), 0.0, 1.0)
-    if object_mask is not None:
-        rgb[~np.asarray(object_mask, bool)] = 0.0
-    return rgb
-
-
 def _mesh(height, object_mask, quads=False):
     """Vertices (n, 3) float32 and triangles (m, 3) int32 of a height map (see write_ply);
     ``quads``: one (m, 4) quad (bl, br, tr, tl) per 2x2 block instead of two triangles."""

@@ -110,6 +110,7 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     summaries, verdicts_by = [], {}
     for name in names:
         s, vs = _build_experiment(name, sel[name], out, scale, messages, results)
+        s["in_totals"] = G.in_totals(name)
         summaries.append(s)
         verdicts_by[name] = vs
     panel_files = []
@@ -129,7 +130,7 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
                     if getattr(T.experiment_module(n), "NOTES", "")])
     write_page(out, "index", blocks, f"psbench report ({scale})")
     write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now))
-    all_v = [v for vs in verdicts_by.values() for v in vs]
+    all_v = [v for s in summaries if s["in_totals"] for v in verdicts_by[s["experiment"]]]
     log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
         f"{sum(v.status == V.SUPPORTED for v in all_v)} SUPPORTED, "
         f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "

@@ -60,6 +60,7 @@ figure{margin:1em 0}img{max-width:100%;height:auto;border:1px solid #e1e4e8}
 figcaption{font-size:13px;color:#555;margin-top:.3em}
 table.verdicts td:nth-child(2),table.verdicts td:nth-child(3){text-align:left}
 table.verdicts td:nth-child(3){color:#444;font-size:13px}
+.quote{color:#555;font-style:italic;font-size:13px;margin-top:.3em}
 """
 
 
@@ -238,8 +239,13 @@ def _html_table(df: pd.DataFrame, caption=None, cls=None) -> str:
             f"</table>")
 
 
+def _claim_md(v) -> str:
+    return v.claim + (f" (thesis: \"{v.quote}\")" if getattr(v, "quote", "") else "")
+
+
 def _verdict_frame(vs) -> pd.DataFrame:
-    return pd.DataFrame([{"status": v.status, "claim": v.claim, "psbench's numbers": v.detail}
+    return pd.DataFrame([{"status": v.status, "claim": _claim_md(v),
+                          "psbench's numbers": v.detail}
                          for v in vs], columns=["status", "claim", "psbench's numbers"])
 
 
@@ -318,10 +324,15 @@ def to_html(blocks, title) -> str:
     return "\n".join(out)
 
 
+def _quote_html(v) -> str:
+    q = getattr(v, "quote", "")
+    return f"<div class='quote'>thesis: &ldquo;{_html.escape(q)}&rdquo;</div>" if q else ""
+
+
 def _verdicts_html(vs) -> str:
     rows = "".join(
         f"<tr class='verdict'><td class='{_STATUS_CLASS.get(v.status, '')}'>"
-        f"{_html.escape(v.status)}</td><td>{inline_html(v.claim)}</td>"
+        f"{_html.escape(v.status)}</td><td>{inline_html(v.claim)}{_quote_html(v)}</td>"
         f"<td>{inline_html(v.detail)}</td></tr>" for v in vs)
     return ("<table class='verdicts'><thead><tr><th>status</th>"
             "<th class='wide'>claim (thesis)</th><th>psbench's numbers</th></tr></thead>"

@@ -20,7 +20,7 @@ from . import verdicts as V
 from .aggregates import data_name
 from .html import STATUSES, Link
 
-__all__ = ["experiment_blocks", "index_blocks", "wall", "display_path"]
+__all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_totals"]
 
 
 def display_path(path) -> str:
@@ -80,6 +80,14 @@ def wall(rows: pd.DataFrame) -> dict:
 
 def _ts(x):
     return "" if x is None or pd.isna(x) else pd.Timestamp(x).strftime("%Y-%m-%d %H:%M:%S")
+
+
+def in_totals(name) -> bool:
+    """Whether the index counts experiment ``name``'s verdicts (its ``IN_TOTALS``)."""
+    try:
+        return bool(getattr(T.experiment_module(name), "IN_TOTALS", True))
+    except Exception:  # noqa: BLE001 - an experiment no longer installed still counts
+        return True
 
 
 def _tally(vs) -> dict:
@@ -174,7 +182,10 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
                  empty, other_link, panels, deviations) -> list:
     """Blocks of ``index`` for one scale."""
     all_v = [v for vs in verdicts_by.values() for v in vs]
-    tot = _tally(all_v)
+    # experiments that re-decide other pages' claims (IN_TOTALS = False, e.g. the matrix of
+    # readings) are listed but not counted again in the totals
+    counted = [s for s in summaries if in_totals(s["experiment"])]
+    tot = _tally([v for s in counted for v in verdicts_by.get(s["experiment"]) or []])
     blocks = [("h1", f"psbench thesis reproduction report (scale: {scale})"),
               ("p", size_text + (f" {other_link}" if other_link else ""))]
     if empty:
@@ -196,7 +207,10 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
     if len(per):
         per.loc[len(per)] = ["total", "", sum(s["ok"] for s in summaries), tot[V.SUPPORTED],
                              tot[V.NOT_SUPPORTED], tot[V.INCONCLUSIVE]]
-    blocks.append(("table", per, "verdicts per experiment (click a name for its page)"))
+    left = [s["experiment"] for s in summaries if not in_totals(s["experiment"])]
+    blocks.append(("table", per, "verdicts per experiment (click a name for its page)"
+                   + (f"; the total leaves out {', '.join(left)}, which re-decides the "
+                      "other pages' claims under alternative readings" if left else "")))
     blocks += [("h2", "Key findings"),
                ("p", "The main conclusion of each table and figure (the first claim on its "
                      "page) and what psbench's runs say about it; claims psbench does not "

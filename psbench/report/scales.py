@@ -141,7 +141,9 @@ def manifest(scale, results, summaries, generated) -> str:
                               "SUPPORTED": int(s["supported"]),
                               "NOT SUPPORTED": int(s["not_supported"]),
                               "INCONCLUSIVE": int(s["inconclusive"])} for s in summaries}
-    tot = {k: sum(e[k] for e in exps.values())
+    counted = [s["experiment"] for s in summaries if s.get("in_totals", True)]
+    tot = {k: sum(exps[n][k] for n in counted)
            for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")}
     return json.dumps({"scale": scale, "store": str(results), "generated": generated,
-                       "verdicts": tot, "experiments": exps}, indent=1) + "\n"
+                       "verdicts": tot, "in_totals": counted, "experiments": exps},
+                      indent=1) + "\n"
