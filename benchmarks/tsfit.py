@@ -1,67 +1,62 @@
-"""tsfit (per-pixel Lambert + Torrance–Sparrow fit): speed, accuracy, real data.
+"""tsfit (per-pixel Lambert + Torrance–Sparrow fit): speed, memory, accuracy, real data.
 
 Sections (all by default; pick with ``--only``):
 
 ``timing``
     sombrero2 at ``--size`` (512) with 16 lights (45x16), Torrance–Sparrow, cast
-    shadows, 5 % noise: median wall and CPU time of ``--runs`` tsfit runs, beside
-    plain least squares (mask None) and Th-Hi-Re-Sh timed in the same run (ratios).
-    Target: <= 1 s at 512^2 x 16.
+    shadows, 5 % noise: median wall and CPU time of ``--runs`` runs of plain least
+    squares (mask None, the baseline), Th-Hi-Re-Sh, the registered ``robust``
+    method, tsfit (default options: its start is ``robust``) and tsfit with the
+    cheaper ``start="trimmed"``, all in the same run, as the library runs them
+    (BLAS threads as numpy sets them; tsfit pins its own fit to one BLAS thread).
+    Then the same methods under ``threadpoolctl.threadpool_limits(1)``, and tsfit
+    with its pinning switched off, to show what pinning does. Target: <= 1 s at
+    512^2 x 16 on 2 cores.
+``memory``
+    Peak resident memory of one tsfit run at ``--mem-size`` (2048) x 16 in a fresh
+    process (``start="trimmed"`` and the default start), against the image stack.
 ``diligent``
     DiLiGenT cat and bear (all 96 images, ``$PSBENCH_DATA`` or ``--data``): NE and
-    median time of tsfit (default options, and ``rho_s_mode="pixel"``), of its start
-    step (the registered ``robust`` method when there is one, else tsfit's private
-    trimmed fallback) and of psbench's least squares, beside the published L2, ST14
-    and HS17 values. Target: <= 3 s per object.
+    median times of psbench's least squares, ``robust`` and tsfit (default,
+    ``start="trimmed"``, ``rho_s_mode="pixel"``) beside the published L2, ST14 and
+    HS17 values. Target: <= 3 s per object.
 ``tables``
     Where the model is right and where not: tsfit against the best of the thesis's
-    masks (None, Th, Hi-Re-Sh, Th-Hi-Re-Sh) on semisphere and sombrero2 at
-    ``--table-size`` (128), lights 45x16 and 30x8+60x8, noise 0 / 5 / 10 %,
-    rendered with Torrance–Sparrow (the fitted model) and with Phong (a mismatch),
-    cast shadows on.
+    masks (None, Th, Hi-Re-Sh, Th-Hi-Re-Sh) at ``--table-size`` (128), lights 45x16
+    and 30x8+60x8, noise 0 / 5 / 10 %, rendered with Torrance–Sparrow (the fitted
+    model; with the per-pixel Cramer–Rao bound) and with Phong (a mismatch): the
+    disc-only hemisphere and sombrero2 with self shadows only (the acceptance's
+    scenes), the hemisphere on its ground plane and sombrero2 with cast shadows.
 
 The machine may be shared: the load (``os.getloadavg``) is printed with every
-section; compare ratios. ``--blas-threads`` (default 1) is set before numpy loads
-(multi-threaded OpenBLAS makes tsfit's many small matrix products much slower on a
-busy machine).
+section; compare ratios, and CPU times (on an idle machine, the wall time of
+single-threaded work).
 
 Usage::
 
-    python benchmarks/tsfit.py [--only timing diligent tables] [--runs 5] [--size 512]
-                               [--data DIR] [--quick]
+    python benchmarks/tsfit.py [--only timing memory diligent tables] [--runs 5]
+                               [--size 512] [--mem-size 2048] [--data DIR] [--quick]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
 import os
+import subprocess
 import sys
 import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 
-def _blas_threads(argv):
-    n = "1"
-    for i, a in enumerate(argv):
-        if a == "--blas-threads" and i + 1 < len(argv):
-            n = argv[i + 1]
-        elif a.startswith("--blas-threads="):
-            n = a.split("=", 1)[1]
-    if n != "0":
-        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ[var] = n
-    return n
-
-
-BLAS_THREADS = _blas_threads(sys.argv) if __name__ == "__main__" else None
-
-import numpy as np  # noqa: E402
-
-import psbench as ps  # noqa: E402
-from psbench import registry  # noqa: E402
-from psbench.solve.methods._tsfit_eval import noise_comparison, problem  # noqa: E402
-from psbench.solve.methods._tsstart import resolve_start  # noqa: E402
-from psbench.solve.methods.tsfit import TsfitOptions, tsfit  # noqa: E402
+import psbench as ps
+from psbench import registry
+from psbench.solve.methods import tsfit as tsfit_module
+from psbench.solve.methods._tsfit_eval import noise_comparison, problem
+from psbench.solve.methods._tsstart import resolve_start
+from psbench.solve.methods.tsfit import TsfitOptions, tsfit
 
 #: published mean angular errors (degrees): DiLiGenT paper (L2, ST14) and HS17
 PUBLISHED = {"cat": {"L2": 8.41, "ST14": 6.12, "HS17": 4.9},
@@ -85,35 +80,110 @@ def timed(fn, runs):
 
 def ne(b, truth, mask):
     n = b / np.maximum(np.linalg.norm(b, axis=2, keepdims=True), 1e-12)
-    return ps.normal_error(n.astype(np.float32), truth, mask)
+    return ps.normal_error(n.astype(np.float32), truth, object_mask=mask)
+
+
+def _robust(pr):
+    spec = registry.get("methods", "robust")
+    return spec.func(pr, spec.options())
+
+
+def _methods(images, lay, mask, pr):
+    out = [("None (LS)", lambda: ps.solve(images, lay, mask="None", object_mask=mask)),
+           ("Th-Hi-Re-Sh", lambda: ps.solve(images, lay, mask="Th-Hi-Re-Sh",
+                                             object_mask=mask))]
+    if "robust" in registry.methods():
+        out.append(("robust", lambda: _robust(pr)))
+    out += [(f"tsfit (start {resolve_start('auto')})", lambda: tsfit(pr)),
+            ("tsfit (start trimmed)", lambda: tsfit(pr, TsfitOptions(start="trimmed")))]
+    return out
+
+
+@contextlib.contextmanager
+def _blas(limit):
+    if limit is None:
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=limit, user_api="blas"):
+        yield
 
 
 def section_timing(args):
+    from threadpoolctl import threadpool_info
+    blas = [(i.get("internal_api"), i.get("num_threads")) for i in threadpool_info()
+            if i.get("user_api") == "blas"]
     print(f"\n## Timing: sombrero2 {args.size}^2 x 16 (45x16), TS, cast shadows, 5 % noise "
-          f"[{load()}, BLAS threads {BLAS_THREADS}]")
+          f"[{load()}; BLAS {blas}]")
     surf = ps.make_surface("sombrero2", size=args.size)
     lay = ps.layout("45x16")
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0, shadows=True)
-    pr = problem(scene.images, lay, surf.mask)
-    rows = []
-    for name, fn in [
-            ("None (LS)", lambda: ps.solve(scene.images, lay, mask="None", object_mask=surf.mask)),
-            ("Th-Hi-Re-Sh", lambda: ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh",
-                                              object_mask=surf.mask)),
-            ("tsfit", lambda: tsfit(pr))]:
-        wall, cpu, res = timed(fn, args.runs)
-        b = res.b
-        rows.append((name, wall, cpu, ne(b, surf.normals, surf.mask), res))
-    base = rows[0][1]
-    print("| method | median wall s | median CPU s | x None | NE deg |")
-    print("|---|---|---|---|---|")
-    for name, wall, cpu, e, _ in rows:
-        print(f"| {name} | {wall:.3f} | {cpu:.3f} | {wall / base:.1f} | {e:.2f} |")
-    fit = rows[-1][4]
-    st = {k: round(v, 3) for k, v in fit.info["timings"].items()}
-    print(f"tsfit stages (last run, wall s): {st}; start={fit.info['start']}; "
-          f"mean LM iterations {fit.iterations[surf.mask].mean():.1f}; "
-          f"converged {100 * fit.converged[surf.mask].mean():.2f} %  [{load()}]")
+    mask = surf.object_mask
+    pr = problem(scene.images, lay, mask)
+    print("| BLAS threads | method | median wall s | median CPU s | wall / LS | NE deg |")
+    print("|---|---|---|---|---|---|")
+    last = None
+    for label, limit, pin in (("as the library runs", None, True),
+                              ("all limited to 1 (threadpoolctl)", 1, True),
+                              ("numpy default, tsfit not pinned", None, False)):
+        tsfit_module.PIN_BLAS = pin
+        rows = []
+        with _blas(limit):
+            for name, fn in _methods(scene.images, lay, mask, pr):
+                if not pin and not name.startswith("tsfit"):
+                    continue
+                wall, cpu, res = timed(fn, args.runs)
+                rows.append((name, wall, cpu, ne(res.b, surf.normals, mask), res))
+        tsfit_module.PIN_BLAS = True
+        base = rows[0][1] if rows[0][0].startswith("None") else None
+        for name, wall, cpu, e, res in rows:
+            ratio = f"{wall / base:.1f}" if base else "-"
+            print(f"| {label} | {name} | {wall:.3f} | {cpu:.3f} | {ratio} | {e:.2f} |")
+            if name.startswith("tsfit") and limit is None and pin:
+                last = res if last is None else last
+    fit = last
+    cpu = {k: round(v, 3) for k, v in fit.info["cpu_timings"].items()}
+    print(f"\ntsfit (default) CPU s per stage (last run): {cpu}; start={fit.info['start']}; "
+          f"mean LM iterations {fit.iterations[mask].mean():.1f}; propagated "
+          f"{fit.info['propagated']} pixels; converged {100 * fit.converged[mask].mean():.2f} %"
+          f"  [{load()}]")
+
+
+_MEM_CHILD = r"""
+import json, resource, sys, warnings
+import numpy as np, psutil, psbench as ps
+from psbench.solve.methods._tsfit_eval import problem
+from psbench.solve.methods.tsfit import TsfitOptions, tsfit
+warnings.simplefilter("ignore")
+size, start = int(sys.argv[1]), sys.argv[2]
+surf = ps.make_surface("sombrero2", size=size)
+lay = ps.layout("45x16")
+images = ps.render(surf, lay, model="ts", noise=0.05, seed=0, shadows=True).images
+pr = problem(images, lay, surf.object_mask)
+rss0 = psutil.Process().memory_info().rss
+peak0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+fit = tsfit(pr, TsfitOptions(**({} if start == "default" else {"start": start})))
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps(dict(stack=images.nbytes, rss0=rss0, peak0=peak0, peak=peak,
+                      cpu=fit.info["cpu_timings"], start=fit.info["start"])))
+"""
+
+
+def section_memory(args):
+    print(f"\n## Memory: sombrero2 {args.mem_size}^2 x 16, one tsfit run in a fresh process "
+          f"[{load()}]")
+    print("| start | image stack MB | RSS before the fit MB | peak RSS MB | peak - before, "
+          "x stack | fit CPU s |")
+    print("|---|---|---|---|---|---|")
+    for start in ("trimmed", "default"):
+        out = subprocess.run([sys.executable, "-c", _MEM_CHILD, str(args.mem_size), start],
+                             capture_output=True, text=True, check=True)
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        mb = 2 ** 20
+        grow = (r["peak"] - r["rss0"]) / r["stack"] if r["peak"] > r["peak0"] else 0.0
+        print(f"| {start if start != 'default' else r['start'] + ' (default)'} | "
+              f"{r['stack'] / mb:.0f} | {r['rss0'] / mb:.0f} | {r['peak'] / mb:.0f} | "
+              f"{grow:.1f} | {r['cpu']['total']:.1f} |")
 
 
 def section_diligent(args):
@@ -121,74 +191,81 @@ def section_diligent(args):
         "PSBENCH_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
     print(f"\n## DiLiGenT (96 images) [{load()}]")
     start = resolve_start("auto")
-    print(f"tsfit's start step here: {start!r} "
-          f"({'registered robust method' if start == 'robust' else 'private fallback'})")
-    print("| object | psbench L2 | published L2 | ST14 | HS17 | start (" + start + ") | "
-          "tsfit | tsfit rho_s per pixel | tsfit median s | tsfit CPU s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("NE in degrees; times are medians of --runs runs, wall / CPU seconds, least "
+          "squares (LS, the baseline) timed in the same run")
+    print("| object | psbench L2 | published L2 | ST14 | HS17 | robust | tsfit (start "
+          f"{start}) | tsfit (start trimmed) | tsfit (rho_s per pixel) | LS wall / CPU s | "
+          "robust wall / CPU s | tsfit wall / CPU s (x LS wall) | tsfit trimmed wall / CPU s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for obj in ("cat", "bear"):
         folder = root / "diligent" / obj
         if not folder.is_dir():
             print(f"| {obj} | missing: {folder} |")
             continue
         ds = ps.io.read_dataset(folder)
-        pr = problem(ds.images, ds.lights, ds.mask)
-        ls = ps.solve(ds.images, ds.lights, mask="None", object_mask=ds.mask)
+        mask = ds.object_mask
+        pr = problem(ds.images, ds.lights, mask)
+        lw, lc, ls = timed(lambda: ps.solve(ds.images, ds.lights, mask="None",
+                                            object_mask=mask), args.runs)
+        rw, rc, rob = (timed(lambda: _robust(pr), args.runs) if "robust" in registry.methods()
+                       else (float("nan"), float("nan"), ls))
         wall, cpu, fit = timed(lambda: tsfit(pr), args.runs)
+        tw, tc, fit_t = timed(lambda: tsfit(pr, TsfitOptions(start="trimmed")), args.runs)
         fit_px = tsfit(pr, TsfitOptions(rho_s_mode="pixel"))
-        if start == "robust":
-            spec = registry.get("methods", "robust")
-            b_start = spec.func(pr, spec.options()).b
-        else:
-            from psbench.solve.methods._tsstart import start_weights
-            idx = np.flatnonzero(ds.mask.ravel())
-            k = ds.images.shape[0]
-            I = np.ascontiguousarray(ds.images.reshape(k, -1)[:, idx])
-            b, _ = start_weights(pr, "trimmed", idx, I, np.ones(I.shape, bool))
-            b_start = np.zeros((ds.mask.size, 3), np.float32)
-            b_start[idx] = b.T
-            b_start = b_start.reshape(*ds.mask.shape, 3)
         p = PUBLISHED[obj]
-        print(f"| {obj} | {ne(ls.b, ds.normals, ds.mask):.2f} | {p['L2']} | {p['ST14']} | "
-              f"{p['HS17']} | {ne(b_start, ds.normals, ds.mask):.2f} | "
-              f"{ne(fit.b, ds.normals, ds.mask):.2f} | {ne(fit_px.b, ds.normals, ds.mask):.2f} | "
-              f"{wall:.2f} | {cpu:.2f} |")
+        e = lambda b: ne(b, ds.normals, mask)  # noqa: E731
+        print(f"| {obj} | {e(ls.b):.2f} | {p['L2']} | {p['ST14']} | {p['HS17']} | "
+              f"{e(rob.b):.2f} | {e(fit.b):.2f} | {e(fit_t.b):.2f} | {e(fit_px.b):.2f} | "
+              f"{lw:.2f} / {lc:.2f} | {rw:.2f} / {rc:.2f} | {wall:.2f} / {cpu:.2f} "
+              f"({wall / lw:.0f}x) | {tw:.2f} / {tc:.2f} |")
         print(f"|  | shared m = {fit.info['m']:.2f}, rho_s = {fit.info['rho_s']:.4f}, "
-              f"converged {100 * fit.converged[ds.mask].mean():.2f} % |")
+              f"converged {100 * fit.converged[mask].mean():.2f} %, CPU s per stage "
+              f"{ {k: round(v, 2) for k, v in fit.info['cpu_timings'].items()} } |")
     print(f"[{load()}]")
+
+
+#: (surface, shadows) of the tables: the acceptance's scenes without cast shadows
+#: (the disc-only hemisphere; sombrero2 with self shadows only) and both with cast
+#: shadows (the hemisphere on its ground plane)
+SCENES = (("semisphere_disc", "self"), ("sombrero2", "self"), ("semisphere", True),
+          ("sombrero2", True))
 
 
 def section_tables(args):
     noises = (0.0, 0.05) if args.quick else (0.0, 0.05, 0.1)
     for model in ("ts", "phong"):
-        print(f"\n## {model.upper()}-rendered scenes, {args.table_size}^2, cast shadows "
+        print(f"\n## {model.upper()}-rendered scenes, {args.table_size}^2 "
               f"[{load()}]")
-        print("| surface | lights | noise | tsfit NE | best mask | best mask NE | ratio | "
-              "m | rho_s | converged % |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
-        for surface in ("semisphere", "sombrero2"):
+        print("| surface | shadows | lights | noise | tsfit NE | per-pixel bound (CRB) | "
+              "best mask | best mask NE | ratio | m | rho_s | converged % |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for surface, shadows in SCENES:
             for lights in ("45x16", "30x8+60x8"):
                 rows = noise_comparison(surface, lights, noises, size=args.table_size,
-                                        model=model, shadows=True, seed=0)
+                                        model=model, shadows=shadows, seed=0)
                 for r in (r for r in rows if r["method"] == "tsfit"):
-                    print(f"| {surface} | {lights} | {100 * r['noise']:.0f} % | {r['ne']:.2f} | "
-                          f"{r['best_mask']} | {r['best_mask_ne']:.2f} | {r['ratio']:.2f} | "
-                          f"{r['m']:.2f} | {r['rho_s']:.3f} | {100 * r['converged']:.2f} |")
+                    crb = "-" if not np.isfinite(r["crb_ne"]) else f"{r['crb_ne']:.2f}"
+                    print(f"| {surface} | {shadows} | {lights} | {100 * r['noise']:.0f} % | "
+                          f"{r['ne']:.2f} | "
+                          f"{crb} | {r['best_mask']} | {r['best_mask_ne']:.2f} | "
+                          f"{r['ratio']:.2f} | {r['m']:.2f} | {r['rho_s']:.3f} | "
+                          f"{100 * r['converged']:.2f} |")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--only", nargs="+", choices=("timing", "diligent", "tables"),
-                    default=("timing", "diligent", "tables"))
+    sections = ("timing", "memory", "diligent", "tables")
+    ap.add_argument("--only", nargs="+", choices=sections, default=sections)
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--mem-size", type=int, default=2048)
     ap.add_argument("--table-size", type=int, default=128)
     ap.add_argument("--data", default=None)
     ap.add_argument("--quick", action="store_true", help="fewer runs, noise levels, smaller")
-    ap.add_argument("--blas-threads", default="1")
     args = ap.parse_args(argv)
     if args.quick:
         args.runs, args.size, args.table_size = 2, min(args.size, 256), min(args.table_size, 96)
+        args.mem_size = min(args.mem_size, 512)
     warnings.simplefilter("ignore", RuntimeWarning)
     print(f"psbench {ps.__version__}, numpy {np.__version__}, {os.cpu_count()} CPUs, {load()}")
     for name in args.only:

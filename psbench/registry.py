@@ -16,8 +16,8 @@ psbench.surfaces   ``pkg.module:SURFACE``     :class:`SurfaceSpec`
 psbench's own pieces are declared in its ``pyproject.toml`` under the same groups, so a
 third-party package extends psbench exactly as psbench extends itself (as pytest and
 benchopt do). When psbench runs from a source tree without installed metadata, its
-built-ins are found by convention instead (every module of the built-in packages that
-defines the attribute). :func:`register` adds a piece at run time (notebooks, tests).
+built-ins are found by convention as well (every public module of the built-in packages
+that defines the attribute), so a new built-in is one new module. :func:`register` adds a piece at run time (notebooks, tests).
 
 This module is the bottom layer: it imports nothing of psbench but the error type and
 never imports a plug-in before it is asked for.
@@ -234,7 +234,7 @@ def _builtin(group):
 
 def _load(group):
     ep_group = GROUPS[group][0]
-    specs, own = {}, False
+    specs = {}
     for ep in metadata.entry_points(group=ep_group):
         try:
             spec = _wrap(group, ep.name, ep.load())
@@ -243,15 +243,16 @@ def _load(group):
                           f"({ep.value}): {type(exc).__name__}: {exc}", RuntimeWarning,
                           stacklevel=3)
             continue
-        own |= ep.value.startswith("psbench.")
         if spec.name in specs and specs[spec.name] is not spec:
             warnings.warn(f"psbench: {ep_group} name {spec.name!r} is registered twice; "
                           f"keeping the first", RuntimeWarning, stacklevel=3)
             continue
         specs[spec.name] = spec
-    if not own:
-        for name, spec in _builtin(group).items():
-            specs.setdefault(name, spec)
+    # built-in modules are also found by convention: a source tree without installed
+    # metadata works, and a new built-in module is one file (its entry-point line in
+    # pyproject.toml declares it to other tools but is not needed to find it)
+    for name, spec in _builtin(group).items():
+        specs.setdefault(name, spec)
     return specs
 
 

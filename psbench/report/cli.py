@@ -60,6 +60,7 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
     agg = T.aggregate(name, ok)
     cmp = T.compare(name, agg)
     verdicts = V.verdicts(name, agg, ok)
+    thesis = [v for v in verdicts if v.thesis]     # the totals count thesis claims only
     size = T.scale_size(name, scale, results)
     figs, errs = F.figures(name, agg)
     messages.extend(errs)
@@ -75,10 +76,11 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
     summary = dict(experiment=name, **G.wall(rows_all), size=size, shas=shas,
                    dirty=int(rows_all["git_dirty"].fillna(False).astype(bool).sum())
                    if "git_dirty" in rows_all else 0,
-                   supported=sum(v.status == V.SUPPORTED for v in verdicts),
-                   not_supported=sum(v.status == V.NOT_SUPPORTED for v in verdicts),
-                   inconclusive=sum(v.status == V.INCONCLUSIVE for v in verdicts))
-    return summary, verdicts
+                   supported=sum(v.status == V.SUPPORTED for v in thesis),
+                   not_supported=sum(v.status == V.NOT_SUPPORTED for v in thesis),
+                   inconclusive=sum(v.status == V.INCONCLUSIVE for v in thesis),
+                   own=len(verdicts) - len(thesis))
+    return summary, thesis
 
 
 def _selections(df, scale, names, results):

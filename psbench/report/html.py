@@ -9,6 +9,8 @@ A page is a list of blocks:
   holding a verdict status is coloured;
 - ``("img", relpath, caption)``, ``("pre", text)``, ``("links", [(href, text), ...])``;
 - ``("verdicts", [Verdict, ...])``: one table row per verdict (status, claim, numbers);
+  ``("own_verdicts", [...])`` the same for psbench's own questions (row class
+  ``verdict own``, not counted as thesis verdicts);
 - ``("totals", {"SUPPORTED": n, "NOT SUPPORTED": n, "INCONCLUSIVE": n})``: the verdict
   totals as three badges.
 
@@ -281,7 +283,7 @@ def to_markdown(blocks) -> str:
             out.append(_md_table(b[1], b[2] if len(b) > 2 else None))
         elif k == "img":
             out.append(f"![{b[2]}]({b[1]})\n\n_{b[2]}_\n")
-        elif k == "verdicts":
+        elif k in ("verdicts", "own_verdicts"):
             out.append(_md_table(_verdict_frame(b[1])) if b[1] else "_(no verdicts)_\n")
         elif k == "totals":
             out.append(_totals_md(b[1]))
@@ -311,8 +313,9 @@ def to_html(blocks, title) -> str:
         elif k == "img":
             out.append(f"<figure><img src='{e(b[1])}' alt='{e(b[2])}'>"
                        f"<figcaption>{inline_html(b[2])}</figcaption></figure>")
-        elif k == "verdicts":
-            out.append(_verdicts_html(b[1]) if b[1] else "<p><em>(no verdicts)</em></p>")
+        elif k in ("verdicts", "own_verdicts"):
+            cls = "verdict" if k == "verdicts" else "verdict own"
+            out.append(_verdicts_html(b[1], cls) if b[1] else "<p><em>(no verdicts)</em></p>")
         elif k == "totals":
             out.append(_totals_html(b[1]))
         elif k == "pre":
@@ -329,9 +332,9 @@ def _quote_html(v) -> str:
     return f"<div class='quote'>thesis: &ldquo;{_html.escape(q)}&rdquo;</div>" if q else ""
 
 
-def _verdicts_html(vs) -> str:
+def _verdicts_html(vs, cls="verdict") -> str:
     rows = "".join(
-        f"<tr class='verdict'><td class='{_STATUS_CLASS.get(v.status, '')}'>"
+        f"<tr class='{cls}'><td class='{_STATUS_CLASS.get(v.status, '')}'>"
         f"{_html.escape(v.status)}</td><td>{inline_html(v.claim)}{_quote_html(v)}</td>"
         f"<td>{inline_html(v.detail)}</td></tr>" for v in vs)
     return ("<table class='verdicts'><thead><tr><th>status</th>"

@@ -136,9 +136,15 @@ def experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, figs,
     if rows_all.empty:
         blocks.append(("p", f"**NO DATA**: the store holds no run of this experiment at this "
                             f"scale. Run `psbench +experiment={name} scale={scale}` first."))
-    t = _tally(verdicts)
-    blocks += [("h2", "Verdicts on the thesis's conclusions"), ("totals", t),
-               ("verdicts", verdicts)]
+    thesis = [v for v in verdicts if v.thesis]
+    own = [v for v in verdicts if not v.thesis]
+    blocks += [("h2", "Verdicts on the thesis's conclusions"), ("totals", _tally(thesis)),
+               ("verdicts", thesis)]
+    if own:
+        blocks += [("h2", "psbench's own questions"),
+                   ("p", "Questions the thesis does not ask (methods beyond it), decided with "
+                         "the same rules; not counted in the verdict totals."),
+                   ("own_verdicts", own)]
     if figs:
         blocks.append(("h2", "Figures"))
         for rel, stem in figs:

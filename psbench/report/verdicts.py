@@ -37,7 +37,7 @@ import pandas as pd
 __all__ = ["SUPPORTED", "NOT_SUPPORTED", "INCONCLUSIVE", "NE_MARGIN", "QF_MARGIN", "Verdict",
            "verdict", "nodata", "lowest", "rank", "part_values", "slope", "ok", "num",
            "verdicts", "margin_for", "spread", "decide", "by_seed", "seed_part_values",
-           "quoted", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
+           "quoted", "own", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
 
 SUPPORTED, NOT_SUPPORTED, INCONCLUSIVE = "SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"
 NE_MARGIN = 0.1  # degrees: NE differences below this are not decided
@@ -62,6 +62,10 @@ class Verdict:
     quote : str
         The thesis's sentence the claim comes from, with its line in ``thesis.txt``
         (``""`` when not given).
+    thesis : bool
+        True (default) for a thesis conclusion; False for psbench's own question (e.g.
+        whether a method the thesis does not have beats its masks), shown apart and not
+        counted in the verdict totals.
     """
 
     experiment: str
@@ -69,10 +73,11 @@ class Verdict:
     status: str
     detail: str
     quote: str = ""
+    thesis: bool = True
 
     def as_dict(self):
         return {"experiment": self.experiment, "claim": self.claim, "status": self.status,
-                "detail": self.detail, "quote": self.quote}
+                "detail": self.detail, "quote": self.quote, "thesis": self.thesis}
 
 
 def ok(x) -> bool:
@@ -106,6 +111,11 @@ def part_values(agg, part, column) -> dict:
         return {}
     m = agg[(agg["part"] == part) & (agg["column"] == column)]
     return {r: float(v) for r, v in zip(m["row"], m["value"]) if ok(float(v))}
+
+
+def own(v: Verdict) -> Verdict:
+    """``v`` marked as psbench's own question, not a thesis conclusion."""
+    return dataclasses.replace(v, thesis=False)
 
 
 def quoted(v: Verdict, quote: str) -> Verdict:

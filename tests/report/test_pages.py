@@ -190,3 +190,13 @@ def test_a_verdict_shows_the_thesis_sentence_it_tests(report):
     quotes = re.findall(r"<div class='quote'>thesis: &ldquo;(.+?)&rdquo;</div>", html)
     assert quotes and all(len(q) > 10 for q in quotes)
     assert "(thesis: \"" in (report / "table5_3.md").read_text()
+
+
+def test_psbench_own_questions_are_shown_apart_and_not_counted(report):
+    html = (report / "table5_3.html").read_text()
+    own = re.findall(r"<tr class='verdict own'>", html)
+    assert len(own) == 3                              # tsfit vs masks, per noise level
+    assert html.index("own questions</h2>") > html.index("class='totals'")
+    man = json.loads((report / "report.json").read_text())
+    assert sum(man["experiments"]["table5_3"][s] for s in STATUSES) == \
+        sum(_page_tally(html).values())

@@ -207,3 +207,31 @@ def test_entry_point_plugin_gone_after_reload():
     assert "Bright" not in registry.names("masks")
     with pytest.raises(PsbenchError, match="unknown mask 'Bright'"):
         ps.solve(np.ones((8, 4, 4), np.float32), "45x8", mask="Bright")
+
+
+def test_new_builtin_module_is_found_without_an_entry_point(tmp_path, monkeypatch):
+    """A new module in a built-in package is registered by convention alone (one file)."""
+    pkg = tmp_path / "psbtmpmasks"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "bright.py").write_text(textwrap.dedent("""
+        from psbench.registry import Mask
+
+        def bright(images, ctx):
+            return images <= images.max()
+
+        MASK = Mask("Bright", "image", bright, help="keeps everything")
+    """))
+    (pkg / "_private.py").write_text("raise ImportError('private modules are not scanned')")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    name, attr, packages = registry.GROUPS["masks"]
+    monkeypatch.setitem(registry.GROUPS, "masks", (name, attr, packages + ("psbtmpmasks",)))
+    registry.reload("masks")
+    try:
+        assert "Bright" in registry.names("masks") and "Th" in registry.names("masks")
+    finally:
+        monkeypatch.undo()
+        registry.reload("masks")
+        sys.modules.pop("psbtmpmasks.bright", None)
+        sys.modules.pop("psbtmpmasks", None)
+    assert "Bright" not in registry.names("masks")

@@ -58,19 +58,23 @@ class Lights:
 
 
 def _tangents(n):
-    """Orthonormal tangent basis (t1, t2) (3, p) of unit normals n (3, p)."""
+    """Orthonormal tangent basis (t1, t2) (3, p) of unit normals n (3, p).
+
+    Branch-free and without a square root (Duff et al., "Building an orthonormal
+    basis, revisited", JCGT 2017): smooth in n except across nz = 0.
+    """
     nx, ny, nz = n
-    use_x = np.abs(nx) < 0.6  # cross with the axis least aligned with n
-    # t1 = a x n with a = e_x: (0, -nz, ny); with a = e_y: (nz, 0, -nx)
+    sign = np.copysign(np.float32(1.0), nz)
+    a = -1.0 / (sign + nz)
+    b = nx * ny * a
     t1 = np.empty_like(n)
-    t1[0] = np.where(use_x, 0.0, nz)
-    t1[1] = np.where(use_x, -nz, 0.0)
-    t1[2] = np.where(use_x, ny, -nx)
-    t1 /= np.sqrt((t1 * t1).sum(0))
     t2 = np.empty_like(n)
-    t2[0] = ny * t1[2] - nz * t1[1]
-    t2[1] = nz * t1[0] - nx * t1[2]
-    t2[2] = nx * t1[1] - ny * t1[0]
+    t1[0] = 1.0 + sign * nx * nx * a
+    t1[1] = sign * b
+    t1[2] = -sign * nx
+    t2[0] = b
+    t2[1] = sign + ny * ny * a
+    t2[2] = -ny
     return t1, t2
 
 
@@ -104,7 +108,8 @@ def evaluate(L, I, w, n, rd, rs, m, *, jac=False, cols=()):
     Parameters
     ----------
     L : Lights
-    I, w : (k, p) float32
+    I : (k, p) float32
+    w : (k, p) float32 or bool
         Observations and weights.
     n : (3, p) float32 unit normals; rd, rs, m : (p,) float32.
     jac : bool
@@ -139,7 +144,7 @@ def evaluate(L, I, w, n, rd, rs, m, *, jac=False, cols=()):
     B = np.divide(th, s, out=s)
     B *= E
     kappa = rs * 2.0 * m * m
-    Gw = np.multiply(w, lit)  # w G^2
+    Gw = np.multiply(w, lit, dtype=np.float32)  # w G^2
     Gr = np.multiply(wr, lit, out=wr)  # w G r
     if not L.unit:
         Gw *= L.mu2_col
@@ -315,10 +320,13 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
     g = np.empty((q, P), dtype=np.float32)
     t1 = np.empty((3, P), dtype=np.float32)
     t2 = np.empty((3, P), dtype=np.float32)
-    for lo in range(0, P, block):
+    def first(lo):
         s = slice(lo, lo + block)
         cw[s], A[..., s], g[:, s], t1[:, s], t2[:, s] = evaluate(
             L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], jac=True, cols=cols)
+
+    for lo in range(0, P, block):
+        first(lo)
     lam = np.full(P, 1e-3)
     active = np.ones(P, dtype=bool)
     itw = np.zeros(P, dtype=np.int32)
@@ -328,34 +336,45 @@ def fit(L, I, w, n, rd, rs, m, rs_max, *, cols=(), m_lo=1.0, m_hi=50.0, max_iter
         n[:, widx], rd[widx], rs[widx], m[widx] = nw, rdw, rsw, mw
         cost[widx], iters[widx], conv[widx] = cw, itw, convw
 
+    def step(lo):  # one LM iteration on one block (blocks are independent)
+        s = slice(lo, lo + block)
+        a = active[s]
+        if not a.any():
+            return
+        cand, new, ok, small = _step(
+            L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], rsmw[s], A[..., s],
+            g[:, s], t1[:, s], t2[:, s], lam[s], a, cols, m_lo, m_hi, tol)
+        if new is None:
+            better = np.zeros_like(a)
+        else:
+            c2, A2, g2, u1, u2 = new
+            better = a & ~small & ok & (c2 < cw[s]) & np.isfinite(c2)
+            for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                             (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
+                             (t1[:, s], u1), (t2[:, s], u2)):
+                if src is not dst:
+                    np.copyto(dst, src, where=better)
+        ls = lam[s]
+        ls *= np.where(better, 0.2, np.where(a, 8.0, 1.0))
+        np.maximum(ls, 1e-9, out=ls)
+        itw[s] += a
+        done = a & small
+        # a step below tol is taken without evaluating it (the Gauss-Newton model
+        # is exact to second order there): one evaluation less per pixel
+        take = done & ok
+        if take.any():
+            for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
+                             (mw[s], cand[3])):
+                if src is not dst:
+                    np.copyto(dst, src, where=take)
+        convw[s] |= done
+        active[s] &= ~done
+
     for _ in range(max_iter):
         if not active.any():
             break
         for lo in range(0, widx.size, block):
-            s = slice(lo, lo + block)
-            a = active[s]
-            if not a.any():
-                continue
-            cand, new, ok, small = _step(
-                L, Iw[:, s], ww[:, s], nw[:, s], rdw[s], rsw[s], mw[s], rsmw[s], A[..., s],
-                g[:, s], t1[:, s], t2[:, s], lam[s], a, cols, m_lo, m_hi, tol)
-            if new is None:
-                better = np.zeros_like(a)
-            else:
-                c2, A2, g2, u1, u2 = new
-                better = a & ~small & ok & (c2 < cw[s]) & np.isfinite(c2)
-                for dst, src in ((nw[:, s], cand[0]), (rdw[s], cand[1]), (rsw[s], cand[2]),
-                                 (mw[s], cand[3]), (cw[s], c2), (A[..., s], A2), (g[:, s], g2),
-                                 (t1[:, s], u1), (t2[:, s], u2)):
-                    if src is not dst:
-                        np.copyto(dst, src, where=better)
-            ls = lam[s]
-            ls *= np.where(better, 0.2, np.where(a, 8.0, 1.0))
-            np.maximum(ls, 1e-9, out=ls)
-            itw[s] += a
-            done = a & small
-            convw[s] |= done
-            active[s] &= ~done
+            step(lo)
         na = int(active.sum())
         if 0 < na < 0.5 * widx.size:  # compact the working set
             if nw is n:
@@ -381,20 +400,34 @@ def chunks(P, k):
     return [slice(lo, min(P, lo + step)) for lo in range(0, P, step)]
 
 
-def init_rho(L, I, w, n, m, rs_max, rs=None):
+def init_rho(L, I, w, n, m, rs_max, rs=None, *, wII=None):
     """Least-squares (rho_d, rho_s) for fixed n and m (2x2 per pixel, clipped to the
     bounds): a start that already accounts for the highlight. With ``rs`` given
-    (p,), only rho_d is solved. Returns float32 (rd, rs), (p,) each."""
+    (p,), only rho_d is solved. Returns float32 (rd, rs), (p,) each; with ``wII``
+    (p,) = sum_i w_i I_i^2 given, also the cost at that (n, rd, rs, m) (float64,
+    from the same sums: one shading pass instead of two)."""
     P = n.shape[1]
     rd_out = np.empty(P, dtype=np.float32)
     rs_out = np.empty(P, dtype=np.float32)
+    cost = None if wII is None else np.empty(P)
     for s in chunks(P, I.shape[0]):
-        rd_out[s], rs_out[s] = _init_rho(L, I[:, s], w[:, s], n[:, s], m[s], rs_max[s],
-                                         None if rs is None else rs[s])
-    return rd_out, rs_out
+        out = _init_rho(L, I[:, s], w[:, s], n[:, s], m[s], rs_max[s],
+                        None if rs is None else rs[s], None if wII is None else wII[s])
+        rd_out[s], rs_out[s] = out[:2]
+        if cost is not None:
+            cost[s] = out[2]
+    return (rd_out, rs_out) if cost is None else (rd_out, rs_out, cost)
 
 
-def _init_rho(L, I, w, n, m, rs_max, rs):
+def weighted_energy(I, w):
+    """sum_i w_i I_i^2 per pixel, (p,) float64."""
+    out = np.empty(I.shape[1])
+    for s in chunks(I.shape[1], I.shape[0]):
+        out[s] = np.einsum("kp,kp->p", w[:, s] * I[:, s], I[:, s])
+    return out
+
+
+def _init_rho(L, I, w, n, m, rs_max, rs, wII=None):
     c, _, _, E = _shade(L, n, m)
     G = (c > 0) * L.mu_col
     c *= G
@@ -403,12 +436,15 @@ def _init_rho(L, I, w, n, m, rs_max, rs):
     a00 = np.einsum("kp,kp->p", wc, c).astype(np.float64)
     a01 = np.einsum("kp,kp->p", wc, E).astype(np.float64)
     r0 = np.einsum("kp,kp->p", wc, I).astype(np.float64)
+    a11 = r1 = None
+    if rs is None or wII is not None:
+        wE = w * E
+        a11 = np.einsum("kp,kp->p", wE, E).astype(np.float64)
+        r1 = np.einsum("kp,kp->p", wE, I).astype(np.float64)
     if rs is not None:
-        rd = (r0 - a01 * rs) / np.maximum(a00, 1e-30)
-        return np.maximum(rd, 0.0).astype(np.float32), np.asarray(rs, np.float32)
-    wE = w * E
-    a11 = np.einsum("kp,kp->p", wE, E).astype(np.float64)
-    r1 = np.einsum("kp,kp->p", wE, I).astype(np.float64)
+        rs = np.asarray(rs, np.float64)
+        rd = np.maximum((r0 - a01 * rs) / np.maximum(a00, 1e-30), 0.0)
+        return _with_cost(rd, rs, a00, a01, a11, r0, r1, wII)
     det = a00 * a11 - a01 * a01
     ok = det > 1e-9 * np.maximum(a00 * a11, 1e-30)
     sdet = np.where(ok, det, 1.0)
@@ -417,7 +453,17 @@ def _init_rho(L, I, w, n, m, rs_max, rs):
     neg = rs < 0  # a negative rho_s: rho_d alone
     rd = np.where(neg, r0 / np.maximum(a00, 1e-30), rd)
     rs = np.clip(rs, 0.0, rs_max)
-    return np.maximum(rd, 0.0).astype(np.float32), rs.astype(np.float32)
+    return _with_cost(np.maximum(rd, 0.0), rs, a00, a01, a11, r0, r1, wII)
+
+
+def _with_cost(rd, rs, a00, a01, a11, r0, r1, wII):
+    """(rd, rs) as float32, and the cost sum w (I - rd c - rs E)^2 from the sums."""
+    out = rd.astype(np.float32), rs.astype(np.float32)
+    if wII is None:
+        return out
+    rd, rs = out[0].astype(np.float64), out[1].astype(np.float64)
+    cost = wII - 2 * (rd * r0 + rs * r1) + rd * rd * a00 + 2 * rd * rs * a01 + rs * rs * a11
+    return out + (np.maximum(cost, 0.0),)
 
 
 def reduced(L, I, w, n, rd, rs, m, cols, glob):

@@ -15,7 +15,7 @@ from . import _lm, _tsgrid
 __all__ = ["estimate"]
 
 #: pixels of the sub-sample that picks the coarse m, and LM iterations there
-COARSE, COARSE_ITER = 1000, 20
+COARSE, COARSE_ITER = 500, 8
 #: coarse m values, log-spaced over [m_min, m_max]
 M_GRID = 8
 #: Gauss–Newton steps on the shared unknowns: at most this many, until a step moves

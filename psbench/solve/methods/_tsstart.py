@@ -14,8 +14,6 @@ scale is estimated (:func:`noise_sigma`).
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._lm import _solve_spd
@@ -109,8 +107,8 @@ def start_weights(problem, name, idx, I, valid):
     -------
     b : (3, P) float32
         rho * n of the start.
-    weights : (k, P) float32
-        The step's final weights (1 where it reports none), times ``valid``.
+    inliers : (k, P) bool
+        The step's final weights >= 0.5 (all where it reports none), and ``valid``.
     """
     k = I.shape[0]
     w = None
@@ -126,13 +124,13 @@ def start_weights(problem, name, idx, I, valid):
             bfull = fit.b
             wf = fit.weights if fit.weights is not None else fit.valid
             if wf is not None:
-                w = np.asarray(wf, dtype=np.float32).reshape(k, -1)[:, idx]
+                w = np.asarray(wf).reshape(k, -1)[:, idx] >= 0.5
         b = np.ascontiguousarray(np.asarray(bfull, dtype=np.float32).reshape(-1, 3)[idx].T)
-    weights = valid.astype(np.float32) if w is None else np.asarray(w, np.float32) * valid
+    inliers = valid.copy() if w is None else w & valid
     bad = ~np.isfinite(b).all(axis=0)
     if bad.any():  # a start must never poison the fit
         b[:, bad] = lsq3(I[:, bad], problem.S, valid[:, bad].astype(np.float32))
-    return b, weights
+    return b, inliers
 
 
 #: pixels per chunk of the start's per-pixel work (bounds temporaries)
@@ -151,10 +149,12 @@ def noise_sigma(I, pred, w):
     """
     step = max(1, I.shape[1] // SIGMA_PIXELS)
     r = np.abs(I[:, ::step] - pred[:, ::step])
-    r[w[:, ::step] < 0.5] = np.nan
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN images
-        sig = 1.4826 * np.nanmedian(r, axis=1)
+    inl = w[:, ::step] >= 0.5
+    sig = np.full(r.shape[0], np.nan)
+    for i in range(r.shape[0]):  # per image: much faster than nanmedian over NaNs
+        ri = r[i][inl[i]]
+        if ri.size:
+            sig[i] = 1.4826 * np.median(ri)
     ok = np.isfinite(sig)
     fill = float(np.median(sig[ok])) if ok.any() else 0.0
     return np.where(ok, sig, fill).astype(np.float32)
@@ -183,10 +183,15 @@ def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
         it for a slice of the pixels.
     sigma : (k,) float32
         Per-image noise scale (:func:`noise_sigma`).
+
+    Returns
+    -------
+    (k, P) bool
+        The weights (1 = True).
     """
     margin = (np.float32(dark_sigmas) * sigma)[:, None]
     ratio = np.float32(dark_ratio)
-    w = np.empty(I.shape, dtype=np.float32)
+    w = np.empty(I.shape, dtype=bool)
     for lo in range(0, I.shape[1], CHUNK):
         s = slice(lo, lo + CHUNK)
         p, i = pred(s) if callable(pred) else pred[:, s], I[:, s]
