@@ -60,7 +60,7 @@ import numpy as np  # noqa: E402
 import psbench as ps  # noqa: E402
 
 MASKS = ["None", "Th", "Th-Hi-Re-Sh"]
-METHODS = ["trim", "huber", "cauchy", "tukey", "l1", "sbl", "rpca", "robust"]
+METHODS = ["trim", "huber", "cauchy", "tukey", "l1", "sbl", "rpca", "robust", "tsfit"]
 CASES = ["cat96", "cat16", "bear96", "bear16", "sombrero"]
 RIG = "30x8+60x8"
 
@@ -78,7 +78,7 @@ def load_case(name, root):
         surf = ps.make_surface("sombrero2", size=512)
         lay = ps.layout("45x16")
         sc = ps.render(surf, lay, model="ts", shadows=True, noise=0.05, seed=0)
-        return sc.images, lay, surf.mask, surf.normals, "sombrero2 512^2 45x16 TS 5%"
+        return sc.images, lay, surf.object_mask, surf.normals, "sombrero2 512^2 45x16 TS 5%"
     from psbench.harness.run import select_lights
     from psbench.io import read_dataset
 
@@ -87,7 +87,7 @@ def load_case(name, root):
     images, lights = ds.images, ds.lights
     if count == "16":
         images, lights = select_lights(images, lights, RIG)
-    return images, lights, ds.mask, ds.normals, f"{obj} {images.shape[0]} lights"
+    return images, lights, ds.object_mask, ds.normals, f"{obj} {images.shape[0]} lights"
 
 
 def _problem(images, lights, valid, omask):
@@ -123,7 +123,7 @@ def run_case(name, root, methods, masks, compose, repeat, out):
     for m in masks:
         res, t, c = timed(lambda: ps.solve(images, lights, mask=m, object_mask=omask), repeat)
         rows.append((f"mask {m}" if m != "None" else "None (L2)", "-",
-                     ps.normal_error(res.normals, truth, omask), t, c, None))
+                     ps.normal_error(res.normals, truth, object_mask=omask), t, c, None))
     t_none = rows[0][3] if masks and masks[0] == "None" else None
     specs = registered()
     valids = {"None": np.ones(images.shape, dtype=bool)}
@@ -155,7 +155,7 @@ def run_case(name, root, methods, masks, compose, repeat, out):
                 note = f"{(~np.asarray(conv)[omask]).mean():.1%} not converged"
             elif conv is False:
                 note = "not converged"
-            rows.append((meth, vname, ps.normal_error(n, truth, omask), t, c, note))
+            rows.append((meth, vname, ps.normal_error(n, truth, object_mask=omask), t, c, note))
     print(f"\n### {label}: {images.shape[0]} images, {int(omask.sum())} object pixels\n",
           file=out)
     print("| method | valid from | NE (deg) | time (s) | / None | CPU (s) | note |", file=out)
@@ -191,22 +191,22 @@ def th_study(root, out, subsets=("all", "30x8+60x8", "12x4+32x4", "45x4")):
             thr = resolve_thresholds(k, lights, None)
             flat = images.reshape(k, -1)
             rng = flat.max(axis=1) - flat.min(axis=1)
-            on = images[:, ds.mask]
+            on = images[:, ds.object_mask]
             spot = flat.max(axis=1) / np.percentile(on, 99, axis=1)
             low = on < thr["k_low"] * rng[:, None]
             up = on > thr["k_up"] * rng[:, None]
             few = ((~(low | up)).sum(axis=0) < 3).mean()
             # Hi / CS (Eqs. 3.9-3.10) on the residuals of the unmasked solution
-            b = ps.solve(images, lights, object_mask=ds.mask).b[ds.mask]
+            b = ps.solve(images, lights, object_mask=ds.object_mask).b[ds.object_mask]
             res = on - (np.asarray(lights.S, dtype=np.float32) @ b.T)
             hi = (res > thr["k_Hi"] * rng[:, None]).mean()
             cs = (res < thr["k_CS"] * rng[:, None]).mean()
-            ne = [ps.normal_error(ps.solve(images, lights, object_mask=ds.mask).normals,
-                                  ds.normals, ds.mask)]
+            ne = [ps.normal_error(ps.solve(images, lights, object_mask=ds.object_mask).normals,
+                                  ds.normals, object_mask=ds.object_mask)]
             for mask, scope in (("Th", "image"), ("Th", "object"), ("Th", "robust"),
                                 ("Hi", "image"), ("CS", "image")):
-                r = ps.solve(images, lights, mask=mask, object_mask=ds.mask, th_scope=scope)
-                ne.append(ps.normal_error(r.normals, ds.normals, ds.mask))
+                r = ps.solve(images, lights, mask=mask, object_mask=ds.object_mask, th_scope=scope)
+                ne.append(ps.normal_error(r.normals, ds.normals, object_mask=ds.object_mask))
             print(f"| {obj} | {spec} | {k} | {thr['k_low']:.3f} | {thr['k_up']:.2f} | "
                   f"{np.median(spot):.2f}, {spot.max():.2f} | {low.mean():.0%} | {up.mean():.0%} | "
                   f"{few:.0%} | {hi:.0%} ({thr['k_Hi']:.2f}) | {cs:.0%} ({thr['k_CS']:.2f}) | "

@@ -165,7 +165,10 @@ def expand(exp, scale="full", base=None, *, base_dir=None) -> list[dict]:
             if ("zenith" in keys or "count" in keys) and "lights" not in keys:
                 p.pop("lights", None)
             p.update(zip(keys, combo))
-            if "zenith" in p and p.get("lights") is None:
+            # lights: null in the grid (a data folder's own lights) wins over the base's
+            # zenith/count
+            if "zenith" in p and p.get("lights") is None and ("lights" not in keys
+                                                              or "zenith" in keys):
                 p.setdefault("count", 8)
             else:
                 p.pop("zenith", None)

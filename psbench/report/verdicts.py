@@ -28,6 +28,7 @@ one INCONCLUSIVE verdict naming the error.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -37,7 +38,7 @@ import pandas as pd
 __all__ = ["SUPPORTED", "NOT_SUPPORTED", "INCONCLUSIVE", "NE_MARGIN", "QF_MARGIN", "Verdict",
            "verdict", "nodata", "lowest", "rank", "part_values", "slope", "ok", "num",
            "verdicts", "margin_for", "spread", "decide", "by_seed", "seed_part_values",
-           "quoted", "own", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
+           "quoted", "own", "own_questions", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
 
 SUPPORTED, NOT_SUPPORTED, INCONCLUSIVE = "SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"
 NE_MARGIN = 0.1  # degrees: NE differences below this are not decided
@@ -116,6 +117,15 @@ def part_values(agg, part, column) -> dict:
 def own(v: Verdict) -> Verdict:
     """``v`` marked as psbench's own question, not a thesis conclusion."""
     return dataclasses.replace(v, thesis=False)
+
+
+def own_questions(func):
+    """Decorator for an experiment's ``verdicts`` whose claims are all psbench's own
+    questions (e.g. benchmarks of methods beyond the thesis)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        return [own(v) for v in func(*args, **kwargs)]
+    return wrapper
 
 
 def quoted(v: Verdict, quote: str) -> Verdict:

@@ -64,6 +64,10 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         name -> Mask (default: the registered masks, read once per solve).
     """
     timer = timer or Timer()
+    need = getattr(options, "min_images", 0)   # e.g. rpca: refused before any work
+    if method is not None and images.shape[0] < need:
+        raise PsbenchError(f"method {method.name!r} needs at least {need} images, got "
+                           f"{images.shape[0]}")
     masks = mask_specs() if masks is None else masks
     specs = [masks[t] for t in tokens]
     ctx = Context(images, lights, tuple(tokens), thresholds, options, object_mask, seed)
@@ -115,7 +119,9 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
         timer.lap("weights")
         b = kernel.wls(images, ctx.S, weights)
         timer.lap("weighted_ps")
-    info.update(fit.info)
+    extra = fit.info.get("warnings") or []
+    info.update({key: v for key, v in fit.info.items() if key != "warnings"})
+    info["warnings"].extend(w for w in extra if w not in info["warnings"])
     if masked and not plain:
         info["changed"] = changed
     normal = masked and any(s.stage == "normal" for s in specs)

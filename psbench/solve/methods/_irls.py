@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base import Options, check_choice, check_int, check_number
-from ._robust_common import Pixels, masked_median, wls
+from ._robust_common import Pixels, concentrate, masked_median, residuals, wls
 
 __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
@@ -87,57 +87,99 @@ def irls(px: Pixels, b0, update, *, n_iter, tol, state=None, want_inverse=False)
         The state each pixel ended with.
     """
     n, k = px.I.shape
-    st = {key: np.array(v, copy=True) for key, v in (state or {}).items()}
-    out_b = np.empty((n, 3), dtype=np.float32)
-    out_w = np.zeros((n, k), dtype=np.float32)
-    out_it = np.full(n, n_iter, dtype=np.int32)
-    out_conv = np.zeros(n, dtype=bool)
-    out_st = {key: np.empty_like(v) for key, v in st.items()}
-    if want_inverse and "inv" not in out_st:
-        out_st["inv"] = np.empty((n, 6), dtype=np.float32)
-    sel = np.arange(n)
-    I, V, b = px.I, px.V, np.array(b0, dtype=np.float32, copy=True)
-    done = np.zeros(n, dtype=bool)
+    st0 = dict(state or {})
+    out = _Out(n, k, n_iter, st0, want_inverse)
+    blocks = px.blocks()
+    size = max((sl.stop - sl.start for sl in blocks), default=0)
+    bufs = (np.empty((size, k), dtype=np.float32), np.empty((size, k), dtype=np.float32))
+    b0 = np.asarray(b0, dtype=np.float32)
+    tail = []
+    # block by block (the working arrays stay in cache) until few pixels of the block
+    # are left; the stragglers of every block then iterate together
+    for sl in blocks:
+        sel = np.arange(sl.start, sl.stop)
+        rest = _iterate(px.rows(sl), sel, b0[sl].copy(),
+                        {key: np.array(v[sl], copy=True) for key, v in st0.items()},
+                        np.zeros(sel.size, dtype=np.int32), update, n_iter, tol, want_inverse,
+                        bufs, out, leave=int(TAIL * sel.size))
+        if rest is not None:
+            tail.append(rest)
+    if tail:
+        sel = np.concatenate([t[0] for t in tail])
+        st = {key: np.concatenate([t[2][key] for t in tail]) for key in tail[0][2]}
+        bufs = (np.empty((sel.size, k), dtype=np.float32),
+                np.empty((sel.size, k), dtype=np.float32))
+        _iterate(px.take(sel), sel, np.concatenate([t[1] for t in tail]), st,
+                 np.concatenate([t[3] for t in tail]), update, n_iter, tol, want_inverse,
+                 bufs, out, leave=0)
+    return out.b, out.w, out.it, out.conv, out.st
+
+
+#: a block hands its last pixels (this fraction of it) over to the common tail
+TAIL = 0.05
+
+
+class _Out:
+    """Final per-pixel results of :func:`irls`."""
+
+    def __init__(self, n, k, n_iter, st0, want_inverse):
+        self.b = np.empty((n, 3), dtype=np.float32)
+        self.w = np.zeros((n, k), dtype=np.float32)
+        self.it = np.full(n, n_iter, dtype=np.int32)
+        self.conv = np.zeros(n, dtype=bool)
+        self.st = {key: np.empty_like(v) for key, v in st0.items()}
+        if want_inverse and "inv" not in self.st:
+            self.st["inv"] = np.empty((n, 6), dtype=np.float32)
+
+
+def _iterate(px, sel, b, st, its, update, n_iter, tol, want_inverse, bufs, out, *, leave):
+    """Iterate the pixels of ``px`` (global indices ``sel``, current solutions ``b``,
+    states ``st``, iterations done ``its``) until at most ``leave`` are still moving;
+    finished pixels go to ``out``. Returns None, or (sel, b, st, its) of the pixels
+    left."""
+    I, V = px.I, px.V
     floor = np.float32(1e-6 * px.scale)
     tol = np.float32(tol)
     St = px.S32.T
-    buf = np.empty((n, k), dtype=np.float32)      # residuals, reused (no page faults)
-    scratch = np.empty((n, k), dtype=np.float32)
-    for it in range(1, n_iter + 1):
-        r = buf[:I.shape[0]]
+    buf, scratch = bufs                            # reused: no page faults
+    fin = np.zeros(sel.size, dtype=bool)           # finished (recorded in out)
+    while True:
+        m = I.shape[0]
+        r = buf[:m]
         np.matmul(b, St, out=r)
         np.subtract(I, r, out=r)
         w = update(r, V, st)
         if want_inverse:
             b_new, _, st["inv"] = wls(I, w, px, fallback=b, want_inverse=True,
-                                      scratch=scratch[:I.shape[0]])
+                                      scratch=scratch[:m])
         else:
-            b_new, _ = wls(I, w, px, fallback=b, scratch=scratch[:I.shape[0]])
+            b_new, _ = wls(I, w, px, fallback=b, scratch=scratch[:m])
         d = b_new - b
         step = np.sqrt(np.einsum("ij,ij->i", d, d))
         size = np.sqrt(np.einsum("ij,ij->i", b_new, b_new))
         b = b_new
+        its += 1
         conv = step <= tol * np.maximum(size, floor)
-        last = it == n_iter
-        new = (conv | last) & ~done
+        new = (conv | (its >= n_iter)) & ~fin
         if new.any():
             g = sel[new]
-            out_b[g] = b[new]
-            out_w[g] = w[new]
-            out_it[g] = it
-            out_conv[g] = conv[new]
+            out.b[g] = b[new]
+            out.w[g] = w[new]
+            out.it[g] = its[new]
+            out.conv[g] = conv[new]
             for key, v in st.items():
-                out_st[key][g] = v[new]
-            done |= new
-        if last or done.all():
-            break
-        if done.mean() >= 0.25:  # compact the working set
-            keep = ~done
-            sel, I, b = sel[keep], I[keep], b[keep]
-            V = np.broadcast_to(np.True_, I.shape) if px.all_valid else V[keep]
-            st = {key: v[keep] for key, v in st.items()}
-            done = np.zeros(sel.size, dtype=bool)
-    return out_b, out_w, out_it, out_conv, out_st
+                out.st[key][g] = v[new]
+            fin |= new
+            if fin.all():
+                return None
+            keep = ~fin
+            if keep.sum() <= leave:
+                return sel[keep], b[keep], {key: v[keep] for key, v in st.items()}, its[keep]
+            if fin.mean() >= 0.25:  # compact the working set
+                sel, I, b, its = sel[keep], I[keep], b[keep], its[keep]
+                V = np.broadcast_to(np.True_, I.shape) if px.all_valid else V[keep]
+                st = {key: v[keep] for key, v in st.items()}
+                fin = np.zeros(sel.size, dtype=bool)
 
 
 # ---------------------------------------------------------------------- M-estimators
@@ -192,33 +234,17 @@ def robust_scale(r, V, all_valid, floor):
     return np.maximum(sigma, floor)
 
 
-def concentrate(px: Pixels, b, steps):
-    """Least-trimmed-squares concentration steps: keep the h = floor(m / 2) + 1
-    observations of smallest |residual| (m valid ones; the largest breakdown point)
-    and refit, ``steps`` times (Rousseeuw & Van Driessen 2006: each step cannot
-    increase the trimmed sum of squares)."""
-    h = px.m // 2 + 1
-    for _ in range(steps):
-        a = np.abs(px.I - b @ px.S32.T)
-        if not px.all_valid:
-            a[~px.V] = np.inf
-        s = np.sort(a, axis=1)
-        t = s[:, h[0] - 1:h[0]] if px.all_valid else np.take_along_axis(s, (h - 1)[:, None], 1)
-        keep = a <= t
-        b = wls(px.I, keep.astype(np.float32), px, fallback=b)[0]
-    return b
-
-
 def start_solution(px: Pixels, start: str):
     """(n, 3) starting solution: "lts" (rank-trimmed least squares followed by two
-    least-trimmed-squares concentration steps), "trim" (rank-trimmed least squares)
-    or "ls" (masked least squares)."""
+    least-trimmed-squares concentration steps keeping floor(m / 2) + 1 observations),
+    "trim" (the ``trim`` method with its defaults) or "ls" (masked least squares)."""
     if start in ("trim", "lts"):
-        from .trim import TrimOptions, trim_valid
+        from .trim import TrimOptions, trim_fit
         d = TrimOptions()
-        keep = trim_valid(px, d.drop_dark, d.drop_bright)
-        b = wls(px.I, keep.astype(np.float32), px)[0]
-        return concentrate(px, b, 2) if start == "lts" else b
+        if start == "trim":
+            return trim_fit(px, d.drop_dark, d.drop_bright, d.refine)[0]
+        b = trim_fit(px, d.drop_dark, d.drop_bright, 0)[0]
+        return concentrate(px, b, px.m // 2 + 1, 2)[0]
     return px.start()
 
 
@@ -247,11 +273,20 @@ def m_estimate(problem, options: MOptions, *, name, weight, c_default):
     b0 = start_solution(px, options.start)
     # the scale of the start's residuals (fixed: MM-estimation; "update": re-estimated
     # from the current residuals at every iteration)
-    state = {"sigma": robust_scale(px.I - b0 @ px.S32.T, px.V, all_valid, floor)}
+    sigma = np.empty(px.n, dtype=np.float32)
+    for sl in px.blocks():
+        sub = px.rows(sl)
+        sigma[sl] = robust_scale(residuals(sub, b0[sl]), sub.V, all_valid, floor)
     b, w, its, conv, st = irls(px, b0, update, n_iter=options.n_iter, tol=options.tol,
-                               state=state)
-    r = px.I - b @ px.S32.T
-    inlier = px.V & (np.abs(r) <= (c * st["sigma"])[:, None])
+                               state={"sigma": sigma})
+    inlier = np.empty(px.I.shape, dtype=bool)
+    for sl in px.blocks():
+        sub = px.rows(sl)
+        r = residuals(sub, b[sl])
+        np.abs(r, out=r)
+        np.less_equal(r, (c * st["sigma"][sl])[:, None], out=inlier[sl])
+        if not all_valid:
+            inlier[sl] &= sub.V
     # w(0) = 1 for every estimator: the weights are already in [0, 1]
     return px.fit(name, b, valid=inlier, weights=w, iterations=its,
                   converged=conv, n_iter=options.n_iter,

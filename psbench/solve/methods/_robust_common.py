@@ -14,9 +14,11 @@ import numpy as np
 
 from ..base import Fit
 
-__all__ = ["Pixels", "wls", "sym3_inverse", "leverage", "masked_median", "weights_out"]
+__all__ = ["Pixels", "wls", "concentrate", "residuals", "sym3_inverse", "leverage", "masked_median", "weights_out"]
 
 _IU = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+#: observations per block of :meth:`Pixels.blocks` (1 MB of float32)
+BLOCK_VALUES = 1 << 18
 
 
 def _outer(S):
@@ -53,11 +55,11 @@ class Pixels:
         self.idx = None if self.full else np.flatnonzero(om)
         flat = images.reshape(k, -1)
         vflat = np.asarray(problem.valid, dtype=bool).reshape(k, -1)
-        if self.full:
-            self.I = np.ascontiguousarray(flat.T, dtype=np.float32)
-        else:
-            self.I = np.ascontiguousarray(flat[:, self.idx].T, dtype=np.float32)
-        n = self.I.shape[0]
+        n = flat.shape[1] if self.full else self.idx.size
+        self.I = np.empty((n, k), dtype=np.float32)
+        for lo in range(0, n, max(256, BLOCK_VALUES // max(k, 1))):   # in cache
+            hi = min(n, lo + max(256, BLOCK_VALUES // max(k, 1)))
+            self.I[lo:hi] = (flat[:, lo:hi] if self.full else flat[:, self.idx[lo:hi]]).T
         self.all_valid = bool(vflat.all()) if self.full else bool(vflat[:, self.idx].all())
         if self.all_valid:  # a read-only view: no (n, k) copy
             self.V = np.broadcast_to(np.True_, (n, k))
@@ -75,10 +77,41 @@ class Pixels:
     def n(self):
         return self.I.shape[0]
 
+    def rows(self, sl):
+        """A view of the pixels ``sl`` (a slice): ``I``, ``V`` and ``m`` restricted,
+        everything else shared (for per-block processing that stays in cache)."""
+        sub = object.__new__(type(self))
+        sub.__dict__.update(self.__dict__)
+        sub.I = self.I[sl]
+        sub.m = self.m[sl]
+        sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[sl])
+        sub._start_rows = sl
+        return sub
+
+    def take(self, idx):
+        """A view like :meth:`rows` of the pixels ``idx`` (an index array; copies)."""
+        sub = object.__new__(type(self))
+        sub.__dict__.update(self.__dict__)
+        sub.I = self.I[idx]
+        sub.m = self.m[idx]
+        sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[idx])
+        sub._start_rows = idx
+        return sub
+
+    def blocks(self, values=BLOCK_VALUES):
+        """Slices of consecutive pixels holding about ``values`` observations each:
+        per-pixel work done block by block keeps its temporaries in cache (and
+        avoids a page fault per fresh multi-megabyte temporary)."""
+        size = max(256, values // max(self.k, 1))
+        return [slice(lo, min(self.n, lo + size)) for lo in range(0, self.n, size)]
+
     def start(self):
-        """(n, 3) float32: the masked least-squares start of the problem."""
+        """(n, 3) float32: the masked least-squares start of the problem (of the rows
+        of a :meth:`rows` view)."""
         b = np.asarray(self._problem.start(), dtype=np.float32).reshape(-1, 3)
-        return np.ascontiguousarray(b if self.full else b[self.idx])
+        b = b if self.full else b[self.idx]
+        sl = getattr(self, "_start_rows", None)
+        return np.ascontiguousarray(b if sl is None else b[sl])
 
     # ------------------------------------------------------------------ scatter back
     def image(self, values, fill=0, dtype=None):
@@ -96,11 +129,13 @@ class Pixels:
         """(n, k) per-observation values -> (k, H, W), ``fill`` off the object."""
         values = np.asarray(values)
         out = np.empty((self.k, self.H * self.W), dtype=values.dtype)
-        if self.full:
-            out[:] = values.T
-        else:
+        if not self.full:
             out[:] = fill
-            out[:, self.idx] = values.T
+        for sl in self.blocks():          # block-wise transpose: stays in cache
+            if self.full:
+                out[:, sl] = values[sl].T
+            else:
+                out[:, self.idx[sl]] = values[sl].T
         return out.reshape(self.k, self.H, self.W)
 
     def fit(self, name, b, *, valid=None, weights=None, iterations=0, converged=True,
@@ -177,8 +212,10 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
 
     Parameters
     ----------
-    I, w : (n, k) float32
-        Intensities and weights (0 = unused).
+    I : (n, k) float32
+        Intensities.
+    w : (n, k) float32 or bool
+        Weights (0 / False = unused).
     px : Pixels
         For ``S`` and its outer products.
     fallback : (n, 3) float32, optional
@@ -196,10 +233,12 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
         Non-singular pixels.
     inv : (n, 6) float32, only with ``want_inverse``
     """
-    # (6, n) and (3, n) layouts keep the closed-form 3x3 algebra on contiguous rows
-    a = px.outer.T @ w.T                        # (6, n)
+    if w.dtype != np.float32:
+        w = w.astype(np.float32)
+    # (n, 6) and (n, 3) products, then contiguous (6, n) / (3, n) rows for the 3x3 algebra
+    a = np.ascontiguousarray(np.matmul(w, px.outer).T)
     wi = np.multiply(w, I, out=scratch)
-    r = px.S32.T @ wi.T                         # (3, n)
+    r = np.ascontiguousarray(np.matmul(wi, px.S32).T)
     a00, a01, a02, a11, a12, a22 = a
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
@@ -228,6 +267,44 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
         inv *= inv_det[:, None]
         return b, ok, inv
     return b, ok
+
+
+def residuals(px: Pixels, b):
+    """(n, k) float32 residuals I - S b of the pixels of ``px`` (a fresh array)."""
+    r = np.matmul(b, px.S32.T)
+    return np.subtract(px.I, r, out=r)
+
+
+def concentrate(px: Pixels, b, h, steps):
+    """Least-trimmed-squares concentration steps: keep, per pixel, the ``h`` (n,) valid
+    observations of smallest |residual| of ``b`` (ties kept) and solve again, ``steps``
+    times (Rousseeuw & Van Driessen 2006: a step cannot increase the sum of the h
+    smallest squared residuals). Returns (b, keep (n, k) bool); block by block."""
+    b = np.array(b, dtype=np.float32, copy=True)
+    keep = np.empty(px.I.shape, dtype=bool)
+    for sl in px.blocks():
+        sub = px.rows(sl)
+        b[sl], keep[sl] = _concentrate(sub, b[sl], np.asarray(h)[sl], steps, keep[sl])
+    return b, keep
+
+
+def _concentrate(px, b, h, steps, out):
+    I = px.I
+    const = px.all_valid and h.size and np.all(h == h[0])
+    for _ in range(steps):
+        a = np.matmul(b, px.S32.T)
+        np.subtract(I, a, out=a)
+        np.abs(a, out=a)
+        if not px.all_valid:
+            a[~px.V] = np.inf
+        s = np.sort(a, axis=1)
+        if const:
+            t = s[:, h[0] - 1:h[0]]
+        else:
+            t = np.take_along_axis(s, (np.maximum(h, 1) - 1)[:, None], 1)
+        keep = np.less_equal(a, t, out=out)
+        b = wls(I, keep, px, fallback=b)[0]
+    return b, out
 
 
 def leverage(inv, px):

@@ -22,7 +22,7 @@ def errors(fit_fn):
     out = []
     for seed in SEEDS:
         surf, lay, bad, _ = corrupted(seed)
-        p = problem(bad, lay, object_mask=surf.mask)
-        out.append((ne(p.start(), surf.normals, surf.mask),
-                    ne(fit_fn(p).b, surf.normals, surf.mask)))
+        p = problem(bad, lay, object_mask=surf.object_mask)
+        out.append((ne(p.start(), surf.normals, surf.object_mask),
+                    ne(fit_fn(p).b, surf.normals, surf.object_mask)))
     return out

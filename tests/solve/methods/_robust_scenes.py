@@ -42,8 +42,9 @@ def fit(name, prob, *, quiet=True, **options):
         return m.func(prob, opts)
 
 
-def ne(b, truth, mask):
-    return ps.normal_error(kernel.split(np.asarray(b, dtype=np.float32))[0], truth, mask)
+def ne(b, truth, object_mask):
+    return ps.normal_error(kernel.split(np.asarray(b, dtype=np.float32))[0], truth,
+                           object_mask=object_mask)
 
 
 def lambert_scene(size=48, lights="30x8+60x8", zenith=28.0):
@@ -51,12 +52,12 @@ def lambert_scene(size=48, lights="30x8+60x8", zenith=28.0):
     height scaled so that its normals reach ``zenith`` degrees (< 90 - 60), so every
     s . n > 0 and least squares on clean images is exact."""
     base = ps.make_surface("sombrero1", size=size)
-    z0 = np.arccos(base.normals[..., 2][base.mask].min())
+    z0 = np.arccos(base.normals[..., 2][base.object_mask].min())
     surf = ps.surface_from_height(base.height * (np.tan(np.radians(zenith)) / np.tan(z0)),
-                                  base.mask)
+                                  object_mask=base.object_mask)
     lay = ps.layout(lights)
     images = ps.render(surf, lay, model="lambert", shadows="self").images
-    assert (images[:, surf.mask] > 0).all()
+    assert (images[:, surf.object_mask] > 0).all()
     return surf, lay, images
 
 

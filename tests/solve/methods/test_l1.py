@@ -22,8 +22,8 @@ def test_interpolates_the_inliers():
     bad = images.copy()
     bad[2] *= 3.0
     bad[9] = 0.0
-    f = fit("l1", problem(bad, lay, object_mask=surf.mask))
-    assert ne(f.b, surf.normals, surf.mask) < 0.01
+    f = fit("l1", problem(bad, lay, object_mask=surf.object_mask))
+    assert ne(f.b, surf.normals, surf.object_mask) < 0.01
     assert not f.valid[[2, 9]].any() and f.valid[[i for i in range(16) if i not in (2, 9)]].all()
     assert (f.weights[[2, 9]] < 0.01).all()
 

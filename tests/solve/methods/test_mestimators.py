@@ -38,10 +38,10 @@ def test_weight_functions():
 @pytest.mark.parametrize("start", ["lts", "trim", "ls"])
 def test_starts_and_inliers(start):
     surf, lay, images = ts_scene(32, noise=0.02)
-    f = fit("tukey", problem(images, lay, object_mask=surf.mask), start=start)
+    f = fit("tukey", problem(images, lay, object_mask=surf.object_mask), start=start)
     assert f.info["start"] == start and f.info["c"] == pytest.approx(4.685)
     # Tukey: weight > 0 exactly for the inliers |r| < c sigma
-    on = surf.mask[None]
+    on = surf.object_mask[None]
     assert ((f.weights > 0) == f.valid)[np.broadcast_to(on, f.valid.shape)].mean() > 0.999
 
 

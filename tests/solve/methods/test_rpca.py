@@ -28,15 +28,15 @@ def test_needs_four_images_before_any_work():
 
 def test_reports_rank_and_sparse_inliers():
     surf, lay, images = ts_scene(32)
-    f = fit("rpca", problem(images, lay, object_mask=surf.mask))
+    f = fit("rpca", problem(images, lay, object_mask=surf.object_mask))
     assert f.info["rank"] == 3 and f.converged is True and isinstance(f.iterations, int)
-    assert 0.5 < f.valid[:, surf.mask].mean() < 1.0   # shadows / highlights flagged
+    assert 0.5 < f.valid[:, surf.object_mask].mean() < 1.0   # shadows / highlights flagged
 
 
 def test_falls_back_and_warns_when_too_few_observations():
     surf, lay, images = ts_scene(40, noise=0.02)
-    valid = ps.solve(images, lay, mask="Th", object_mask=surf.mask).valid  # ~75 % dropped
-    p = problem(images, lay, valid=valid, object_mask=surf.mask)
+    valid = ps.solve(images, lay, mask="Th", object_mask=surf.object_mask).valid  # ~75 % dropped
+    p = problem(images, lay, valid=valid, object_mask=surf.object_mask)
     with pytest.warns(RuntimeWarning) as rec:
         f = fit("rpca", p, quiet=False)
     assert any("falling back to masked least squares" in str(w.message) for w in rec)
@@ -60,9 +60,9 @@ def test_falls_back_when_completion_fails_on_real_data(diligent):
 
     ds = read_dataset(diligent / "cat")
     images, lights = select_lights(ds.images, ds.lights, "30x8+60x8")
-    valid = ps.solve(images, lights, mask="Th", object_mask=ds.mask).valid
-    p = problem(images, lights, valid=valid, object_mask=ds.mask)
+    valid = ps.solve(images, lights, mask="Th", object_mask=ds.object_mask).valid
+    p = problem(images, lights, valid=valid, object_mask=ds.object_mask)
     f = fit("rpca", p)
     assert f.info["fallback"] == "ls"
     assert f.info["median_residual"] > f.info["median_residual_ls"]
-    np.testing.assert_allclose(f.b[ds.mask], p.start()[ds.mask], atol=1e-6)
+    np.testing.assert_allclose(f.b[ds.object_mask], p.start()[ds.object_mask], atol=1e-6)

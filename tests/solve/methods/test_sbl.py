@@ -18,7 +18,7 @@ def test_sparse_corruptions_acceptance():
 
 def test_weights_and_inliers_find_the_planted_outliers():
     surf, lay, bad, hit = corrupted(1)
-    f = fit("sbl", problem(bad, lay, object_mask=surf.mask))
+    f = fit("sbl", problem(bad, lay, object_mask=surf.object_mask))
     assert (f.weights > 0).all() and f.weights.max() <= 1.0
     # nearly every planted outlier is flagged (measured 0.999); some inliers of the
     # most corrupted pixels are flagged too (precision measured 0.85)
