@@ -2,8 +2,9 @@
 
 Usage::
 
-    python benchmarks/forensic_pipeline.py [--size 2048] [--runs 3] [--method weighted]
+    python benchmarks/forensic_pipeline.py [--size 2048] [--runs 3] [--method LABEL]
                                            [--integrator poisson] [--blas-threads 1]
+                                           [--profile N]
 
 Each run is a fresh subprocess (so its peak RSS is its own): it builds the reference
 (the sister case's true breech face, band-passed: a database entry, not timed as part of
@@ -38,9 +39,10 @@ import numpy as np
 import scipy.fft as sfft
 import psbench as ps
 from psbench.forensic import make_cartridge, acquire, bandpass, register
-from psbench.forensic.pipeline import METHODS, INTEGRATORS
+from psbench.forensic.pipeline import INTEGRATORS, solve_kwargs
 
 size, method, integrator = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+top = int(sys.argv[4])
 out = {"cpu": {}}
 cpu = [time.process_time()]
 
@@ -63,12 +65,16 @@ ref_f = bandpass(ref.height_um, bf_ref, pixel_size=ref.pixel_size)
 t = lap("reference", t)
 case = make_cartridge(size, gun=3, case=5)
 t0 = t = lap("surface", t)
+if top:                     # CPU-time profile of the pipeline stages (not of the baseline)
+    import cProfile, io, pstats
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
 acq = acquire(case, seed=1)
 images, lights = acq.images, acq.lights
 out["mean_level"] = acq.mean_level
 del acq
 t = lap("acquire", t)
-res = ps.solve(images, lights, object_mask=case.object_mask, **METHODS[method])
+res = ps.solve(images, lights, object_mask=case.object_mask, **solve_kwargs(method, case.pixel_size))
 normals = res.normals
 out["solve_timings"] = {k: round(v, 3) for k, v in res.timings.items()}
 out["iterations"] = res.iterations
@@ -80,6 +86,12 @@ bf = case.regions["breech_face"]
 m = register(ref_f, bandpass(h, bf, pixel_size=case.pixel_size), bf_ref, bf)
 t = lap("compare", t)
 out["pipeline"] = t - t0
+if top:
+    prof.disable()
+    buf = io.StringIO()
+    st = pstats.Stats(prof, stream=buf)
+    st.sort_stats("tottime").print_stats(top)
+    out["profile"] = buf.getvalue()
 out["cpu"]["pipeline"] = sum(out["cpu"][k] for k in ("acquire", "solve", "integrate", "compare"))
 out["ccf"] = m.ccf
 out["ne"] = ps.normal_error(normals, case.normals, case.object_mask)
@@ -97,6 +109,9 @@ def main(argv=None):
     ap.add_argument("--method", default="weighted Th-Hi-Re-Sh",
                     help="a key of psbench.forensic.pipeline.METHODS")
     ap.add_argument("--integrator", default="poisson", help="poisson or bilateral")
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="print the N functions with the most CPU time (own time) of the "
+                         "last run's pipeline (cProfile; adds overhead to that run's times)")
     ap.add_argument("--blas-threads", default="1",
                     help="OPENBLAS/OMP/MKL threads of the child (0: library default)")
     args = ap.parse_args(argv)
@@ -112,7 +127,8 @@ def main(argv=None):
     runs = []
     for i in range(args.runs):
         p = subprocess.run([sys.executable, "-c", CHILD, str(args.size), args.method,
-                            args.integrator], capture_output=True, text=True, env=env)
+                            args.integrator, str(args.profile if i == args.runs - 1 else 0)],
+                           capture_output=True, text=True, env=env)
         if p.returncode:
             print(p.stderr, file=sys.stderr)
             return p.returncode
@@ -137,6 +153,9 @@ def main(argv=None):
           f"{'met' if peak <= TARGET_GIB else 'NOT met'})")
     print(f"solve stages of the last run: {runs[-1]['solve_timings']}")
     print(f"load before {load0[0]:.2f}, after {load1[0]:.2f} (1-min averages)")
+    if runs[-1].get("profile"):
+        print("CPU profile of the last run's pipeline (own CPU seconds per function):")
+        print(runs[-1]["profile"])
     return 0
 
 

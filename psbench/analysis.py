@@ -22,79 +22,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._analysis_common import KINDS  # noqa: F401  (public here)
+from ._analysis_common import (_edges, _ne, _ps, _render, _ring, _seq, _sname, _surface,
+                               _surface_zenith)
 from ._checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "mask_scores", "highlight_truth_options", "diffuse_counts", "KINDS", "TRUTHS"]
-
-#: image kinds -> render options
-KINDS = {"Di": dict(model="lambert", shadows="none"),
-         "Di-clamped": dict(model="lambert", shadows="self"),
-         "Hi-Sh": dict(model="ts", shadows=True)}
+           "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "KINDS",
+           "TRUTHS"]
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 #: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
 #: :func:`highlight_truth_options`): psbench's default reflection cone of 12 deg, the
 #: earlier range cut-off 0.1 and the range cut-off 0.5
 TRUTHS = ("cone12", "range0.1", "range0.5")
-
-
-# ----------------------------------------------------------------------------- helpers
-def _surface(surface, size):
-    from .surfaces import make_surface
-    if isinstance(surface, str):
-        return make_surface(surface, size=size)
-    if all(hasattr(surface, a) for a in ("height", "object_mask", "normals")):
-        return surface
-    raise PsbenchError(f"surface must be a surface name or a Surface, got {type(surface).__name__}")
-
-
-def _sname(surf, given):
-    return given if isinstance(given, str) else getattr(surf, "name", "custom")
-
-
-def _seq(x):
-    if isinstance(x, (str, bytes)) or np.isscalar(x):
-        return [x]
-    return list(x)
-
-
-def _render(surf, lights, kind, noise, seed, **kw):
-    from .render import render
-    opts = dict(KINDS[choice(kind, tuple(KINDS), "kind")])
-    opts.update(kw)
-    return render(surf, lights, noise=noise, seed=seed, **opts)
-
-
-def _ne(normals, surf):
-    from .metrics import normal_error
-    return float(normal_error(normals, surf.normals, object_mask=surf.object_mask))
-
-
-def _ps(images, lights, mask="None", **kw):
-    from .solve.api import solve
-    return solve(images, lights, mask=mask, **kw)
-
-
-def _ring(zenith, count):
-    return f"{zenith:g}x{int(count)}"
-
-
-def _surface_zenith(surf):
-    n = np.asarray(surf.normals, dtype=np.float64)
-    return np.degrees(np.arccos(np.clip(n[..., 2] / np.linalg.norm(n, axis=-1), -1, 1)))
-
-
-def _edges(bins):
-    if bins is None:
-        return np.linspace(0.0, 90.0, 19)
-    if np.isscalar(bins):
-        return np.linspace(0.0, 90.0, int(bins) + 1)
-    e = np.asarray(bins, dtype=float)
-    if e.ndim != 1 or e.size < 2 or np.any(np.diff(e) <= 0):
-        raise PsbenchError(f"bins must be an int or increasing edges, got {bins!r}")
-    return e
 
 
 # ----------------------------------------------------------------------------- Fig. 4.9
@@ -537,3 +479,12 @@ def diffuse_counts(surface="sombrero2", lights=("30x4", "45x4", "60x4"), *, size
                         enumerate(np.bincount(d, minlength=lay.k + 1) / d.size)})
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- Chapter 7
+def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
+    """Chapter 7 forensic study: one part (method, truth, timing, panels) of experiment
+    chapter7 (:func:`psbench.forensic.study.run`; payload json)."""
+    from .forensic.study import run
+
+    return run(part, label, size=size, seed=seed, study=study)

@@ -39,21 +39,33 @@ from .._checks import PsbenchError
 from ..integrate import integrate
 from ..metrics import normal_error
 from ..solve import solve
-from .cartridge import make_cartridge
+from .cartridge import DEFAULT_PIXEL_SIZE, make_cartridge
 from .identify import LONG_CUTOFF, bandpass, register
 from .plane import Plane, estimate_plane, level, level_sample, tilt_surface
 from .presets import acquire
 
 __all__ = ["METHODS", "INTEGRATORS", "TRUTH", "TRUTH_NORMALS", "Reconstruction", "reconstruct",
-           "height_error", "score_pairs", "separation", "auc", "evaluate", "plane_study"]
+           "solve_kwargs", "roughness", "height_error", "score_pairs", "separation", "auc",
+           "evaluate", "plane_study"]
 
-#: method label -> keyword arguments of :func:`psbench.solve`
+#: method label -> keyword arguments of :func:`psbench.solve` (``weights_um``: see
+#: :func:`solve_kwargs`). The thesis's four (Figs. 7.8-7.9), its FWLSE (Section 3.4.1),
+#: and psbench's robust estimators.
 METHODS = {
     "None": {"mask": "None"},
     "Th-Hi-Re-Sh": {"mask": "Th-Hi-Re-Sh"},
     "weighted Th-Hi-Re-Sh": {"mask": "Th-Hi-Re-Sh", "weighted": True},
+    "weighted Th-Hi-Re-Sh (um)": {"mask": "Th-Hi-Re-Sh", "weighted": True, "weights_um": True},
     "WPS": {"method": "wps"},
+    "FWLSE": {"method": "fwlse"},
+    "robust": {"method": "robust"},
+    "tsfit": {"method": "tsfit"},
+    "tukey": {"method": "tukey"},
+    "l1": {"method": "l1"},
 }
+#: the weighted masks' pixel parameters (Options defaults: dilation radius 7, Gaussian
+#: sigma 3, 15 x 15 kernels), taken as lengths at the thesis's 4.9 um pixel
+_WEIGHTS_AT = {"dilate_radius": 7, "smooth_sigma": 3.0}
 #: integrator label -> function(normals, object_mask) -> heights (pixel units)
 INTEGRATORS = {
     "poisson": lambda n, m: integrate(n, object_mask=m, method="poisson"),
@@ -63,6 +75,40 @@ INTEGRATORS = {
 TRUTH = "ground truth"
 #: the method label of the ground-truth normals, integrated (what a perfect PS gives)
 TRUTH_NORMALS = "ground-truth normals"
+
+
+def solve_kwargs(label, pixel_size):
+    """Keyword arguments of :func:`psbench.solve` for a method label of :data:`METHODS`.
+
+    ``weights_um``: the weighted masks' dilation radius and blur sigma are physical
+    lengths, the thesis's pixel values at its 4.9 um pixel (34 um and 15 um), converted
+    to this pixel size (radius rounded, at least 1; kernel 2 x radius + 1). At 4.9 um
+    it is the thesis's setting; on coarser images the thesis's pixel values blur over
+    larger areas of the case (at 9.8 um the default dilation reaches 69 um).
+    """
+    if label not in METHODS:
+        raise PsbenchError(f"method {label!r} is not known; valid choices: {', '.join(METHODS)}")
+    kw = dict(METHODS[label])
+    if kw.pop("weights_um", False):
+        f = DEFAULT_PIXEL_SIZE / float(pixel_size)
+        r = max(1, int(round(_WEIGHTS_AT["dilate_radius"] * f)))
+        kw.update(dilate_radius=r, kernel_size=2 * r + 1,
+                  smooth_sigma=_WEIGHTS_AT["smooth_sigma"] * f)
+    return kw
+
+
+def roughness(normals, object_mask):
+    """Mean angle (deg) between 4-neighbour normals inside ``object_mask``: noise and
+    false edges raise it above the true surface's."""
+    n = np.asarray(normals, np.float32)
+    m = np.asarray(object_mask, bool)
+    out = []
+    for a, b, ma in ((n[:, 1:], n[:, :-1], m[:, 1:] & m[:, :-1]),
+                     (n[1:], n[:-1], m[1:] & m[:-1])):
+        c = np.einsum("...c,...c->...", a, b)[ma]
+        out.append(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    v = np.concatenate(out)
+    return float(v.mean()) if v.size else float("nan")
 
 
 def _detrend(d, region, plane):
@@ -92,8 +138,8 @@ class Reconstruction:
     ----------
     rows : list of dict
         One row per (method, integrator): ``gun, case, method, integrator, ne,
-        ne_breech_face, ne_firing_pin, err_firing_pin_um, err_wall_um,
-        err_breech_face_um, solve_s, integrate_s``.
+        ne_breech_face, ne_firing_pin, roughness, err_firing_pin_um, err_wall_um,
+        err_breech_face_um, acquire_s, solve_s, integrate_s``.
     filtered : dict
         (method, integrator, region) -> (band-passed heights (µm), valid mask), cropped
         to the region's bounding box; the ground truth under (:data:`TRUTH`, "-", region).
@@ -120,7 +166,8 @@ def _crop(z, m):
 
 def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRATORS),
                 seed=0, short=None, long=LONG_CUTOFF, keep_normals=False,
-                solve_options=None, truth_normals=False, compare=("breech_face",)):
+                solve_options=None, truth_normals=False, compare=("breech_face",),
+                domain="case"):
     """Acquire, solve, integrate and filter one case with every method and integrator.
 
     Parameters
@@ -146,14 +193,16 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
         Regions (keys of :attr:`Cartridge.regions`) whose band-passed heights are kept
         for the identification: ``"breech_face"`` (the field's comparison) and/or
         ``"firing_pin"`` (the impression, where shadows and highlights are).
+    domain : {"case", "primer"}
+        Where the normals are integrated: the whole case head, or only the primer
+        (which holds both comparison regions; forensic systems crop it before the
+        comparison, and integration costs less).
 
     Returns
     -------
     Reconstruction
     """
-    for name in methods:
-        if name not in METHODS:
-            raise PsbenchError(f"method {name!r} is not known; valid choices: {', '.join(METHODS)}")
+    kwargs = {name: solve_kwargs(name, cartridge.pixel_size) for name in methods}
     for name in integrators:
         if name not in INTEGRATORS:
             raise PsbenchError(f"integrator {name!r} is not known; valid choices: "
@@ -168,13 +217,18 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
             raise PsbenchError(f"compare region {region!r} is not known; valid choices: "
                                f"{', '.join(reg)}")
     rois = {r: reg[r] & c.object_mask for r in compare}
+    if domain not in ("case", "primer"):
+        raise PsbenchError(f"domain={domain!r} is not known; valid choices: case, primer")
+    area = c.object_mask & (reg["primer"] if domain == "primer" else True)
 
     def keep(label, integ, h):
         for r, roi in rois.items():
             filtered[(label, integ, r)] = _crop(
                 bandpass(h, roi, pixel_size=ps_, short=short, long=long), roi)
 
-    acq = acquire(c, seed=seed)
+    t0 = time.perf_counter()
+    acq = acquire(c, seed=seed) if methods else None
+    t_acq = time.perf_counter() - t0
     filtered = {}
     keep(TRUTH, "-", truth)
     rows, normals = [], {}
@@ -183,7 +237,7 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
         if name == TRUTH_NORMALS:
             res, n = None, c.normals
         else:
-            res = solve(acq.images, acq.lights, object_mask=c.object_mask, **METHODS[name],
+            res = solve(acq.images, acq.lights, object_mask=c.object_mask, **kwargs[name],
                         **(solve_options or {}))
             n = res.normals
         t_solve = time.perf_counter() - t0
@@ -193,10 +247,11 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
                 "ne": normal_error(n, c.normals, object_mask=c.object_mask),
                 "ne_breech_face": normal_error(n, c.normals, object_mask=bf),
                 "ne_firing_pin": normal_error(n, c.normals, object_mask=reg["firing_pin"]),
-                "solve_s": t_solve}
+                "roughness": roughness(n, c.object_mask),
+                "acquire_s": t_acq if res is not None else 0.0, "solve_s": t_solve}
         for integ in integrators:
             t0 = time.perf_counter()
-            h = INTEGRATORS[integ](n, c.object_mask) * np.float32(ps_)
+            h = INTEGRATORS[integ](n, area) * np.float32(ps_)
             t_int = time.perf_counter() - t0
             rows.append({**base, "integrator": integ, "integrate_s": t_int,
                          "err_firing_pin_um": height_error(h, truth, reg["firing_pin"]),
@@ -280,7 +335,7 @@ def separation(scores, by=("region", "method", "integrator")):
 def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
              integrators=tuple(INTEGRATORS), seed=0, short=None, long=LONG_CUTOFF,
              solve_options=None, register_options=None, truth_normals=True,
-             compare=("breech_face", "firing_pin"), progress=None):
+             compare=("breech_face", "firing_pin"), domain="case", progress=None):
     """The Chapter 7 table: reconstruct every case, score every pair per method.
 
     Parameters
@@ -290,7 +345,7 @@ def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
         share the gun.
     size : int, default 512
         Image side (pixel size 4.9 x 2048 / size µm).
-    methods, integrators, seed, short, long, solve_options, truth_normals, compare
+    methods, integrators, seed, short, long, solve_options, truth_normals, compare, domain
         As :func:`reconstruct`.
     register_options : dict, optional
         Passed to :func:`~.identify.register`.
@@ -312,7 +367,7 @@ def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
         rec = reconstruct(make_cartridge(size, gun=g, case=cs), methods=methods,
                           integrators=integrators, seed=seed, short=short, long=long,
                           solve_options=solve_options, truth_normals=truth_normals,
-                          compare=compare)
+                          compare=compare, domain=domain)
         per_case.extend(rec.rows)
         poses[(g, cs)] = rec.pose
         for key, val in rec.filtered.items():
@@ -333,8 +388,8 @@ def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
     summary = separation(scores)
     if len(per_case):
         means = per_case.groupby(["method", "integrator"], sort=False)[
-            ["ne", "ne_breech_face", "ne_firing_pin", "err_firing_pin_um", "err_wall_um",
-             "err_breech_face_um", "solve_s", "integrate_s"]].mean().reset_index()
+            ["ne", "ne_breech_face", "ne_firing_pin", "roughness", "err_firing_pin_um",
+             "err_wall_um", "err_breech_face_um", "solve_s", "integrate_s"]].mean().reset_index()
         summary = summary.merge(means, on=["method", "integrator"], how="left")
     return per_case, scores, summary
 
@@ -344,7 +399,8 @@ def _capture(surface, method, integrator, reference, seed, short, long):
     reg, ps_ = surface.regions, surface.pixel_size
     bf = reg["breech_face"] & surface.object_mask
     acq = acquire(surface, seed=seed)
-    res = solve(acq.images, acq.lights, object_mask=surface.object_mask, **METHODS[method])
+    res = solve(acq.images, acq.lights, object_mask=surface.object_mask,
+                **solve_kwargs(method, ps_))
     h = INTEGRATORS[integrator](res.normals, surface.object_mask) * np.float32(ps_)
     _, fitted = level(h, surface.object_mask, pixel_size=ps_)
     fp, case = reg["firing_pin"], surface.object_mask

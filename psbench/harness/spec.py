@@ -325,6 +325,9 @@ PARAMS: tuple[Param, ...] = (
           check=C.check_analysis, metavar="NAME"),
     Param("args", "mapping", {}, "kind=analysis / noop: extra keyword arguments", kinds=_RUN,
           metavar="{}"),
+    Param("study", "mapping", {}, "kind=analysis: settings an experiment's scale gives its "
+          "analysis (chapter7: guns, cases, time_size, ...)", kinds=("analysis",),
+          hashed="unless_default", metavar="{}"),
     Param("extras", "list", [], "extra outputs stored with the row", choices=EXTRAS, kinds=_RUN),
 )
 

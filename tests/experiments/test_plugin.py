@@ -110,7 +110,7 @@ def test_entry_point_registers_module_and_grid(tiny):
     assert tiny.module.__name__ == "tinyexp.tiny"
     assert tiny.grid.name == "tiny.yaml" and tiny.TITLE == "Tiny: NE of Th vs None"
     names = T.names()
-    assert names[-1] == "tiny" and names[0] == "table2_1" and len(names) == 21
+    assert names[-1] == "tiny" and names[0] == "table2_1" and len(names) == 22
     assert "tiny" in gate.gated() and "table5_3" in gate.gated()
 
 
@@ -178,7 +178,7 @@ def test_every_builtin_experiment_keeps_the_contract():
 
     names = [n for n in T.names() if n.startswith(("table", "fig"))]
     assert len(names) == 17
-    names.append("interpretations")
+    names += ["interpretations", "chapter7"]
     for name in names:
         mod = T.experiment_module(name)
         assert isinstance(mod, types.ModuleType) and mod.__name__ == f"psbench.experiments.{name}"
@@ -189,6 +189,6 @@ def test_every_builtin_experiment_keeps_the_contract():
         exp = load(name, results_dir="/r")
         assert exp["name"] == name and exp["scales"].keys() >= {"full", "ci"}
     assert gate.gated() == ("table2_1", "table5_3", "table5_4", "table5_5", "table5_6",
-                            "fig5_12", "robust")
+                            "fig5_12", "chapter7", "robust")
     data = load("table6_1", results_dir="/r")["grids"][0]["data"]
     assert "/r/simrig/penny" in data or "PSBENCH_SIMRIG" in __import__("os").environ

@@ -343,3 +343,21 @@ def test_object_scope_ignores_pixels_outside_the_object():
     ob = solve(img, lay, mask="Th", th_scope="object", object_mask=om)
     assert _flags(ob) == [1, 4]
     assert _flags(im) != [1, 4]  # the spot inflates every image's range
+
+
+def test_sh_lit_and_unoccluded_matches_ss_and_not_occluded():
+    """The Sh mask's block-wise test gives exactly ss(b, S) & ~occluded, also in place
+    and when the pixel count is not a multiple of the block."""
+    from psbench.solve.masks import sh as sh_mask
+    from psbench.solve.masks.ss import ss
+
+    rng = np.random.default_rng(3)
+    b = rng.standard_normal((181, 190, 3)).astype(np.float32)     # 34390 px > 1 block
+    S = rng.standard_normal((16, 3)).astype(np.float32)
+    occ = rng.random((16, 181, 190)) < 0.2
+    want = ss(b, S) & ~occ
+    assert 0 < want.mean() < 1
+    assert np.array_equal(sh_mask.lit_and_unoccluded(b, S, occ), want)
+    inplace = occ.copy()
+    assert sh_mask.lit_and_unoccluded(b, S, inplace, out=inplace) is inplace
+    assert np.array_equal(inplace, want)

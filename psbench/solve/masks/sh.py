@@ -12,7 +12,7 @@ from ...registry import Mask
 from .. import kernel
 from .ss import ss
 
-__all__ = ["sh_maps", "sh", "apply", "MASK"]
+__all__ = ["sh_maps", "sh", "lit_and_unoccluded", "apply", "MASK"]
 
 
 def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson"):
@@ -48,9 +48,47 @@ def sh(normals, b, S, directions, object_mask=None, **kw):
     height : (H, W) float32
     """
     occ, height = sh_maps(normals, directions, object_mask, **kw)
-    valid = ss(b, S)
-    valid &= ~occ
-    return valid, height
+    return lit_and_unoccluded(b, S, occ, out=occ), height
+
+
+#: pixels per block of :func:`lit_and_unoccluded` (a (k, block) float32 block stays in
+#: cache; at 2048 x 2048 x 16 the whole s . b array would be 256 MB)
+_BLOCK = 1 << 15
+
+
+def lit_and_unoccluded(b, S, occluded, *, out=None):
+    """``(s_i . b > 0) & ~occluded`` (the SS test and the cast shadows), block by block.
+
+    Same values as ``ss(b, S) & ~occluded``: each block's s . b is the same float32
+    product, only never held whole.
+
+    Parameters
+    ----------
+    b : (H, W, 3) float32
+    S : (k, 3)
+    occluded : (k, H, W) bool
+    out : (k, H, W) bool, optional
+        May be ``occluded`` itself (each block is read before it is written).
+
+    Returns
+    -------
+    valid : (k, H, W) bool
+    """
+    k = occluded.shape[0]
+    S32 = np.asarray(S, dtype=np.float32)
+    B = b.reshape(-1, 3)
+    occ = occluded.reshape(k, -1)
+    res = np.empty(occluded.shape, dtype=bool) if out is None else out
+    flat = res.reshape(k, -1)
+    lam = np.empty((k, _BLOCK), dtype=np.float32)
+    lit = np.empty((k, _BLOCK), dtype=bool)
+    for lo in range(0, B.shape[0], _BLOCK):
+        hi = min(B.shape[0], lo + _BLOCK)
+        n = hi - lo
+        np.matmul(S32, B[lo:hi].T, out=lam[:, :n])
+        np.greater(lam[:, :n], 0, out=lit[:, :n])
+        np.greater(lit[:, :n], occ[:, lo:hi], out=flat[:, lo:hi])   # lit and not occluded
+    return res
 
 
 def apply(images, b, ctx):

@@ -173,9 +173,14 @@ def test_propagation_only_lowers_costs_and_helps_the_rim():
     assert on.info["propagated"] > 0
     # the same fit before propagation; a pixel takes a refit only if its cost drops
     assert (on.info["rms"][mask] <= off.info["rms"][mask] * (1 + 1e-6)).all()
-    ne_on = _errors(on.b, surf.normals, mask).mean()
-    ne_off = _errors(off.b, surf.normals, mask).mean()
-    assert ne_on < 0.97 * ne_off, (ne_on, ne_off)
+    # since the robust start keeps more pixels out of wrong basins, propagation mends the
+    # few left: measured (seeds 3, 0, 1) mean NE -1 to -3 %, rim (zenith > 60 deg) -2 to
+    # -5 %, 99th percentile -5 to -10 %
+    e_on, e_off = _errors(on.b, surf.normals, mask), _errors(off.b, surf.normals, mask)
+    assert e_on.mean() < e_off.mean(), (e_on.mean(), e_off.mean())
+    rim = (surf.zenith > 60)[mask]
+    assert e_on[rim].mean() < 0.99 * e_off[rim].mean(), (e_on[rim].mean(), e_off[rim].mean())
+    assert np.percentile(e_on, 99) < 0.97 * np.percentile(e_off, 99)
 
 
 @pytest.mark.parametrize("how", ["robust weights", "Sh validity"])
