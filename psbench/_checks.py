@@ -25,15 +25,23 @@ def as_images(images, name="images", *, min_count=1):
 
     Integer images are converted explicitly: unsigned integers are divided by the
     largest value of their dtype (8-bit -> /255, 16-bit -> /65535) to linear [0, 1];
-    booleans are refused. A single (H, W) image is refused: pass a stack.
+    booleans are refused. A single (H, W) image is refused: pass a stack. Images must
+    be linear intensities: a stack whose mean is negative (negated images) is refused;
+    small negative values (noise, ``shadows="none"`` renderings) are accepted.
     """
-    arr = np.asarray(images)
+    try:
+        arr = np.asarray(images)
+    except (ValueError, TypeError) as exc:   # ragged lists of images
+        raise PsbenchError(f"{name} must be a (k, H, W) array of equal-size images; got "
+                           f"{type(images).__name__} that numpy cannot stack ({exc})") from None
     if arr.dtype == bool or not (np.issubdtype(arr.dtype, np.number)):
         raise PsbenchError(f"{name} must be a numeric array, got dtype {arr.dtype}")
     if arr.ndim != 3:
         raise PsbenchError(f"{name} must have shape (k, H, W), got shape {arr.shape}")
     if arr.shape[0] < min_count:
         raise PsbenchError(f"{name} must hold at least {min_count} images, got {arr.shape[0]}")
+    if arr.shape[1] < 1 or arr.shape[2] < 1:
+        raise PsbenchError(f"{name} must hold at least one pixel per image, got shape {arr.shape}")
     if np.issubdtype(arr.dtype, np.unsignedinteger):
         arr = arr.astype(np.float32) / np.float32(np.iinfo(arr.dtype).max)
     elif np.issubdtype(arr.dtype, np.integer):
@@ -41,20 +49,44 @@ def as_images(images, name="images", *, min_count=1):
     elif np.issubdtype(arr.dtype, np.complexfloating):
         raise PsbenchError(f"{name} must be real, got dtype {arr.dtype}")
     arr = np.ascontiguousarray(arr, dtype=np.float32)
-    if not np.isfinite(arr).all():
-        bad = int((~np.isfinite(arr)).sum())
-        raise PsbenchError(f"{name} holds {bad} NaN/inf pixels; clean or mask them first")
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = float(arr.sum())       # one pass: NaN / inf propagate into the sum
+    if not np.isfinite(total):         # (or a float32 overflow of huge finite values)
+        finite = np.isfinite(arr)
+        if not finite.all():
+            bad = int((~finite).sum())
+            raise PsbenchError(f"{name} holds {bad} NaN/inf pixels; clean or mask them first")
+        total = float(arr.sum(dtype=np.float64))
+    if total < 0:
+        raise PsbenchError(f"{name} must be linear intensities >= 0, but their mean is "
+                           f"{total / arr.size:.3g} < 0 (negated images?); small negative "
+                           "values from noise are accepted, a negative stack is not")
     return arr
 
 
 def as_mask(mask, shape, name="object_mask"):
-    """Return a bool (H, W) mask; None means all True."""
+    """Return a bool (H, W) mask; None means all True.
+
+    Accepts bool arrays and numeric arrays holding only 0 and 1; anything else
+    (fractions, NaN, 255, strings) is refused rather than guessed.
+    """
     if mask is None:
         return np.ones(shape, dtype=bool)
     m = np.asarray(mask)
     if m.shape != tuple(shape):
         raise PsbenchError(f"{name} must have shape {tuple(shape)}, got {m.shape}")
-    return m.astype(bool, copy=False)
+    if m.dtype == bool:
+        return m
+    if not np.issubdtype(m.dtype, np.number) or np.issubdtype(m.dtype, np.complexfloating):
+        raise PsbenchError(f"{name} must be a bool array (or 0/1 numbers), got dtype {m.dtype}")
+    with np.errstate(invalid="ignore"):
+        binary = (m == 0) | (m == 1)
+    if not binary.all():
+        odd = np.unique(m[~binary])[:3]
+        raise PsbenchError(f"{name} must be bool or hold only 0 and 1, got {m.dtype} values "
+                           f"such as {', '.join(f'{v:g}' for v in odd)}; threshold it first "
+                           f"(e.g. {name}=m > 0)")
+    return m.astype(bool)
 
 
 def as_normals(normals, name="normals", shape=None):

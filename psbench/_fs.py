@@ -9,15 +9,22 @@ from __future__ import annotations
 
 import os
 import secrets
+import socket
 from pathlib import Path
 
 __all__ = ["atomic_write", "temp_name"]
 
 
 def temp_name(path) -> Path:
-    """A unique hidden temporary name beside ``path`` (``.<name>.tmp.<pid>.<hex>``)."""
+    """A unique hidden temporary name beside ``path``
+    (``.<name>.tmp.<pid>.<hex>.<host>``: the writer's pid and host let a cleaner prove
+    that a leftover temporary file's writer is dead)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.tmp.{os.getpid()}.{secrets.token_hex(4)}")
+    return path.with_name(f".{path.name}.tmp.{os.getpid()}.{secrets.token_hex(4)}.{HOST}")
+
+
+#: this machine's name as written into temporary names (no separators)
+HOST = "".join(c if c.isalnum() or c in "-_" else "_" for c in socket.gethostname()) or "host"
 
 
 def atomic_write(path, data, *, fsync=True) -> Path:

@@ -83,8 +83,23 @@ METHODS = ("poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral")
 NZ_MIN = 0.05
 
 
+def _number(value, name) -> float:
+    """A real, finite number (bools and strings refused)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"{name} must be a number, got {value!r}") from None
+    if isinstance(value, (bool, np.bool_, str)) or not np.isfinite(v):
+        raise PsbenchError(f"{name} must be a finite number, got {value!r}")
+    return v
+
+
 def _check_normals(normals):
-    n = np.asarray(normals)
+    try:
+        n = np.asarray(normals)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"normals must be an (H, W, 3) array, got {type(normals).__name__} "
+                           "that numpy cannot stack") from None
     if n.ndim != 3 or n.shape[2] != 3:
         raise PsbenchError(f"normals must have shape (H, W, 3), got {n.shape}")
     if not np.issubdtype(n.dtype, np.number) or np.issubdtype(n.dtype, np.complexfloating):
@@ -420,12 +435,14 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
     n = _check_normals(normals)
     choice(method, METHODS, "method")
     choice(datum, ("min", "mean"), "datum")
-    if not (0 < float(nz_min) <= 1):
+    if not (0 < _number(nz_min, "nz_min") <= 1):
         raise PsbenchError(f"nz_min must be in (0, 1], got {nz_min}")
-    if not (float(tol) > 0):
+    if not (_number(tol, "tol") > 0):
         raise PsbenchError(f"tol must be > 0, got {tol}")
-    if int(maxiter) < 1:
-        raise PsbenchError(f"maxiter must be >= 1, got {maxiter}")
+    if isinstance(maxiter, (bool, np.bool_)) or _number(maxiter, "maxiter") != int(maxiter) \
+            or int(maxiter) < 1:
+        raise PsbenchError(f"maxiter must be an integer >= 1, got {maxiter!r}")
+    maxiter = int(maxiter)
     H, W = n.shape[:2]
     if method == "bilateral":
         from ._bilateral import bilateral_integrate

@@ -103,9 +103,15 @@ def cond(S) -> float:
     """
     if isinstance(S, Layout):
         S = S.S
-    S = np.asarray(S, dtype=np.float64)
-    if S.ndim != 2 or S.shape[1] != 3:
+    try:
+        S = np.asarray(S, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise PsbenchError(f"S must be a (k, 3) array of numbers or a Layout, got "
+                           f"{type(S).__name__}") from None
+    if S.ndim != 2 or S.shape[1] != 3 or S.shape[0] < 1:
         raise PsbenchError(f"S must have shape (k, 3), got {S.shape}")
+    if not np.isfinite(S).all():
+        raise PsbenchError("S holds NaN/inf values")
     sv = np.linalg.svd(S, compute_uv=False)
     return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
 
@@ -221,6 +227,10 @@ def layout(spec, *, power=None, ring=None, positions=None) -> Layout:
     return Layout(d, p, rid, zen, pol, "custom", pos)
 
 
+#: light powers psbench accepts: images (mu rho s.n) and albedos (I / mu) stay float32
+POWER_RANGE = (1e-30, 1e30)
+
+
 def _power(power, k):
     if power is None:
         return np.ones(k)
@@ -230,4 +240,8 @@ def _power(power, k):
         raise PsbenchError(f"power must be a scalar or have shape ({k},), got {p.shape}")
     if not np.isfinite(p).all() or (p <= 0).any():
         raise PsbenchError("power must be finite and > 0 for every light")
+    if (p < POWER_RANGE[0]).any() or (p > POWER_RANGE[1]).any():
+        raise PsbenchError(f"power must be within {POWER_RANGE[0]:g}..{POWER_RANGE[1]:g} (images "
+                           f"and albedos are float32), got {p.min():g}..{p.max():g}; a common "
+                           "factor does not change the normals: rescale the powers")
     return p

@@ -2,13 +2,17 @@
 
 Arguments are ``key=value`` pairs (Hydra style, no dashes)::
 
+    psbench-capture rig=sim                    # -> results/captures/sim_<UTC time>/
     psbench-capture rig=sim out=DIR surface=penny lights=30x4+60x4 size=128
     psbench-capture rig=serial port=/dev/ttyUSB0 camera=0 out=DIR lights=30x8+60x8 current=350
 
 Keys
 ----
 rig        ``sim`` (default) or ``serial``
-out        output folder (required; must not exist unless ``overwrite=true``)
+out        output folder; must not exist unless ``overwrite=true`` (default: a new
+           folder ``<results>/captures/<rig>_<UTC time>/``, where ``<results>`` is
+           ``$PSBENCH_RESULTS`` or ``results`` in the current directory, as for
+           ``psbench``). The folder written is printed on stdout.
 lights     nominal LED layout in ring notation (default ``30x4+60x4``); LED i of the
            controller is light i of the layout (``leds=3,4,5`` to remap)
 current    LED current in mA (default 350)
@@ -35,6 +39,11 @@ from .._checks import PsbenchError
 _SIM_KEYS = {"surface": str, "size": int, "seed": int, "distance": float, "gamma": float,
              "vignette": float, "hot_pixels": int, "model": str, "exposure": float,
              "power_spread": float, "read_noise": float}
+# lower bounds (value, strict) of the numeric keys
+_LOW = {"size": (16, False), "distance": (0, True), "gamma": (0, True), "vignette": (0, False),
+        "hot_pixels": (0, False), "exposure": (0, True), "power_spread": (0, False),
+        "read_noise": (0, False), "current": (0, True), "timeout": (0, True),
+        "fault_after": (0, False), "baud": (0, True)}
 
 
 def _parse(argv):
@@ -50,8 +59,45 @@ def _parse(argv):
     return args
 
 
-def _bool(v):
-    return str(v).lower() in ("1", "true", "yes", "on")
+def _bool(v, key="value"):
+    v = str(v).lower()
+    if v not in ("1", "true", "yes", "on", "0", "false", "no", "off"):
+        raise PsbenchError(f"{key}={v!r}: expected true or false")
+    return v in ("1", "true", "yes", "on")
+
+
+def _typed(args, key, typ, default=None, *, low=None, strict=False):
+    """``args[key]`` (popped) converted to ``typ``, at least ``low`` (above it when
+    ``strict``); a one-line error naming the key otherwise."""
+    raw = args.pop(key, None)
+    if raw is None:
+        return default
+    try:
+        v = typ(raw)
+    except (TypeError, ValueError):
+        what = {int: "an integer", float: "a number"}.get(typ, typ.__name__)
+        raise PsbenchError(f"{key}={raw!r}: expected {what}") from None
+    if typ is float and v != v or v in (float("inf"), float("-inf")):
+        raise PsbenchError(f"{key}={raw!r}: expected a finite number")
+    if low is not None and (v <= low if strict else v < low):
+        raise PsbenchError(f"{key}={raw!r}: expected a value {'>' if strict else '>='} {low}")
+    return v
+
+
+def default_out(rig, *, now=None):
+    """The default capture folder: ``<results>/captures/<rig>_<UTC time>`` (a suffix
+    ``-2``, ``-3``, ... when a capture of the same second exists)."""
+    import datetime as _dt
+    import os
+    from pathlib import Path
+
+    now = now or _dt.datetime.now(_dt.timezone.utc)
+    root = Path(os.environ.get("PSBENCH_RESULTS") or "results").expanduser()  # as psbench's
+    base = root / "captures" / f"{rig}_{now.strftime('%Y%m%dT%H%M%SZ')}"
+    out, n = base, 2
+    while out.exists():
+        out, n = base.with_name(f"{base.name}-{n}"), n + 1
+    return out
 
 
 def main(argv=None):
@@ -66,6 +112,10 @@ def main(argv=None):
     except PsbenchError as e:
         print(f"psbench-capture: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:                       # a device, a folder: the environment
+        print(f"psbench-capture: error: {e.strerror or e}: {e.filename or ''}".rstrip(": "),
+              file=sys.stderr)
+        return 2
 
 
 def _run(args):
@@ -74,23 +124,28 @@ def _run(args):
     from .sequence import capture, capture_all
 
     rig = args.pop("rig", "sim")
+    if rig not in ("sim", "serial"):
+        raise PsbenchError(f"rig={rig!r} is not known; valid choices: sim, serial")
     out = args.pop("out", None)
-    if not out:
-        raise PsbenchError("out=DIR is required")
+    if out is not None and not out.strip():
+        raise PsbenchError("out='': expected a folder path (or leave out= away for the default)")
+    if out is None:
+        out = default_out(rig)
     lights = args.pop("lights", "30x4+60x4")
-    current = int(args.pop("current", 350))
-    progress = _bool(args.pop("progress", "true"))
-    overwrite = _bool(args.pop("overwrite", "false"))
+    current = _typed(args, "current", int, 350, low=0, strict=True)
+    progress = _bool(args.pop("progress", "true"), "progress")
+    overwrite = _bool(args.pop("overwrite", "false"), "overwrite")
     if rig == "sim":
         from .sim import RigConfig, SimController, SimRig
         kw = {}
         for k, typ in _SIM_KEYS.items():
             if k in args:
-                kw[k] = typ(args.pop(k))
+                lo, strict = _LOW.get(k, (None, False))
+                kw[k] = _typed(args, k, typ, low=lo, strict=strict)
         targets = args.pop("targets", "all")
         fault = args.pop("fault", None)
-        after = int(args.pop("fault_after", 0))
-        timeout = float(args.pop("timeout", 1.0))
+        after = _typed(args, "fault_after", int, 0, low=0)
+        timeout = _typed(args, "timeout", float, 1.0, low=0, strict=True)
         if args:
             raise PsbenchError(f"unknown key(s) for rig=sim: {', '.join(args)}")
         simrig = SimRig(RigConfig(lights=lights, current_mA=current, **kw))
@@ -102,22 +157,23 @@ def _run(args):
                                    targets=tlist)
         print(path)
         return 0
-    if rig != "serial":
-        raise PsbenchError(f"rig={rig!r} is not known; valid choices: sim, serial")
     from .camera import FolderCamera, OpenCVCamera
     port = args.pop("port", None)
     if not port:
         raise PsbenchError("rig=serial needs port=/dev/ttyUSB0 (or COMn)")
     cam_arg = args.pop("camera", "0")
     exposure = args.pop("exposure", None)
-    baud = int(args.pop("baud", 115200))
-    timeout = float(args.pop("timeout", 1.0))
+    baud = _typed(args, "baud", int, 115200, low=0, strict=True)
+    timeout = _typed(args, "timeout", float, 1.0, low=0, strict=True)
     target = args.pop("target", "object")
     leds = args.pop("leds", None)
     if args:
         raise PsbenchError(f"unknown key(s) for rig=serial: {', '.join(args)}")
     lay = layout(lights)
-    led_idx = None if leds is None else [int(x) for x in leds.split(",")]
+    try:
+        led_idx = None if leds is None else [int(x) for x in leds.split(",")]
+    except ValueError:
+        raise PsbenchError(f"leds={leds!r}: expected comma-separated LED numbers, e.g. 3,4,5") from None
     with LedController(port, baudrate=baud, timeout=timeout) as ctl:
         cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
             if cam_arg.isdigit() else FolderCamera(cam_arg)

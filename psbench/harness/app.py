@@ -18,20 +18,31 @@ ship inside the package (``psbench/conf``, loaded as ``pkg://psbench.conf``). Ro
 to ``<results_dir>/hydra/`` and nothing else is written to the current directory.
 A run already stored is skipped ("skipped (stored)") unless ``rerun=true``; stored
 failed runs are retried with ``retry_failed=true`` (single runs always retry them).
-Errors in the configuration (unknown surface, mask, ...) print one clean message and
-exit with code 2.
+Errors in the configuration (an unknown key, surface or mask, a bad value, an
+unwritable store, a run that cannot fit in memory) print one line and exit with code 2
+before any work, and nothing is stored (:mod:`psbench.harness.checks`,
+:mod:`psbench.harness.preflight`); a ``-m`` sweep is checked job by job first. Runs are
+computed in supervised child processes (:mod:`psbench.harness.supervise`). Ctrl-C or
+SIGTERM prints one line (how many runs are stored) and exits with code 130.
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import sys
 from pathlib import Path
 
 from .._checks import PsbenchError
 from . import spec as S
+from .checks import _precheck, check_keys
+from .store import run_path
 
 __all__ = ["main", "task"]
 
 _EXIT = {"code": 0}
+# what the command is computing: the store root and {sweep: run ids} (for Ctrl-C)
+_WATCH = {}
 # top-level config keys (from the run spec): "+key=value" is accepted for these too
 # (not for experiment: "+experiment=NAME" selects a config group)
 _KEYS = tuple(p.name for p in S.PARAMS + S.SETTINGS if p.name != "experiment")
@@ -100,12 +111,16 @@ def _overridden(*keys) -> bool:
     return any(k in names for k in keys)
 
 
-def _base_params(cfg) -> dict:
+def _base_params(cfg, overridden=None) -> dict:
+    """The run parameters of ``cfg``; ``overridden``: the keys set on the command line
+    (default: read from Hydra's config of the running job)."""
     from omegaconf import OmegaConf
 
     c = OmegaConf.to_container(cfg, resolve=True)
     base = {k: c.get(k) for k in S.param_names(aliases=True)}
-    if c.get("data") is not None and not _overridden("lights", "zenith", "count"):
+    given = (_overridden("lights", "zenith", "count") if overridden is None
+             else bool({"lights", "zenith", "count"} & set(overridden)))
+    if c.get("data") is not None and not given:
         base.pop("lights")           # a data folder uses all its lights by default
         base.pop("zenith")
         base.pop("count")
@@ -129,24 +144,29 @@ def task(cfg):
 def _task(cfg):
     from omegaconf import OmegaConf
 
-    from .params import normalize, run_id, validate
-    from .run import execute, format_row
-    from .store import read_run, stored_status, write_row
+    from .params import normalize, run_id
+    from .preflight import preflight
+    from .run import format_row
+    from .store import read_run, stored_status
+    from .supervise import MAIN_PID_ENV, run_supervised, worker_setup
 
+    multi = _multirun()
+    if multi:
+        worker_setup(os.environ.get(MAIN_PID_ENV))
+    check_keys(cfg)
     root = Path(str(cfg.results_dir)).expanduser()
     if not root.is_absolute():
         root = _cwd() / root
     if cfg.get("experiment"):
         return _experiment(cfg, root)
-    multi = _multirun()
     st = S.coerce_settings({k: cfg.get(k) for k in ("sweep", "rerun", "retry_failed")})
     params = normalize(_base_params(cfg), base_dir=_cwd())
-    validate(params)
     sweep = st["sweep"]
     rid = run_id(params)
     pics = _pictures_dir(cfg, root, sweep, rid, multi) if params["kind"] == "solve" else None
     done = {"run_id": rid, "root": str(root), "sweep": sweep,
             "out": None if pics is None else str(pics)}
+    _WATCH.update(root=root, runs={sweep: [rid]})
     stored = stored_status(root, sweep, [rid]).get(rid) if not st["rerun"] else None
     skip = stored == "ok" or (multi and stored == "failed" and not st["retry_failed"])
     if skip:
@@ -157,24 +177,28 @@ def _task(cfg):
             print(f"no pictures in {pics}/ (stored before pictures were written, or with "
                   "outputs=none): rerun=true makes them", flush=True)
         return {**done, "status": stored, "skipped": True}
+    preflight([params], root=root, sweep=sweep)     # configuration errors: before any work
     full = OmegaConf.to_container(cfg, resolve=True)
     full["results_dir"] = str(root)
-    kept = {}
-    with _one_line_warnings():
-        row = execute(params, sweep=sweep, config={"params": params, "cfg": full}, keep=kept)
-    exc = row.pop("_exc", None)
-    note = None
-    if pics is not None and "result" in kept:          # before the row: stored => pictures
-        note = _write_pictures(cfg, pics, row, kept)
-    path = write_row(root, row)
+    # the pictures are written by the process that computed the run, before its row is
+    # stored: a stored "ok" row implies its pictures (unless outputs=none)
+    after = None if pics is None else (lambda row, kept: _write_pictures(cfg, pics, row, kept))
+    row = run_supervised([params], root=root, sweep=sweep,
+                         config={"params": params, "cfg": full},
+                         wrap=_one_line_warnings, after=after)[0]
+    note = row.pop("_note", None)
+    path = run_path(root, sweep, rid)
     print(f"{format_row(row)} | stored {path}", flush=True)
     if note:
         print(note, flush=True)
     if row["status"] != "ok":
-        if not isinstance(exc, PsbenchError):      # a bug or numerical failure: show where
+        kind = row.get("exc_kind")
+        if kind == "error":                       # a bug or numerical failure: show where
             print(row.get("traceback") or "", file=sys.stderr, flush=True)
+        elif kind in ("memory", "killed"):        # the environment: one line
+            _err(f"{row.get('error')} (the failed row is stored)")
         if not multi:
-            _EXIT["code"] = 2 if isinstance(exc, PsbenchError) else 1
+            _EXIT["code"] = 1 if kind == "error" else 2
     return {**done, "status": row["status"], "skipped": False}
 
 
@@ -220,11 +244,14 @@ def _pictures_present(pics):
 
 
 def _write_pictures(cfg, pics, row, kept):
-    """Write a run's pictures; returns the line saying where they went. Never fatal: a
-    failure is one warning line and the row is stored all the same."""
+    """Write a run's pictures; returns the line saying where they went (None when the
+    run has no result). Never fatal: a failure is one warning line and the row is
+    stored all the same."""
     from . import outputs as O
     from .run import format_row
 
+    if "result" not in kept:
+        return None
     lvl = O.level(S.coerce_settings({"outputs": cfg.get("outputs")})["outputs"])
     try:
         secs = O.write_run(pics, lvl=lvl, row=row, result=kept["result"],
@@ -254,6 +281,9 @@ def _experiment(cfg, root):
         exp = experiment_spec(cfg.experiment)
     runs = expand(exp, scale, _base_params(cfg), base_dir=_cwd())
     name = str(exp["name"])
+    from .params import run_id
+
+    _WATCH.update(root=root, runs={name: [run_id(p) for p in runs]})
     print(f"experiment {name} (scale={cfg.scale}): {len(runs)} runs -> {root}/runs/{name}/",
           file=sys.stderr, flush=True)
     from omegaconf import OmegaConf
@@ -279,7 +309,7 @@ def main(args=None):
     args : list of str, optional
         Command-line arguments without the program name (default ``sys.argv[1:]``).
     """
-    import hydra
+    from .supervise import MAIN_PID_ENV
 
     args = list(sys.argv[1:] if args is None else args)
     if "--version" in args:
@@ -292,13 +322,131 @@ def main(args=None):
 
         sys.stdout.write(help_text())
         return
-    sys.argv = [sys.argv[0]] + _entries(_fix_argv(args))
+    argv = _entries(_fix_argv(args))
+    sys.argv = [sys.argv[0]] + argv
     _EXIT["code"] = 0
-    S.register_hydra()
-    deco = hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name="config")
-    deco(task)()
+    _WATCH.clear()
+    os.environ[MAIN_PID_ENV] = str(os.getpid())   # pool workers follow this process
+    old_term = restore = None
+    try:
+        old_term = _on_sigterm()
+        restore = _sigint_here()
+        import hydra
+
+        S.register_hydra()
+        try:
+            _precheck(argv, _WATCH)
+        except PsbenchError as exc:
+            _err(exc)
+            sys.exit(2)
+        deco = hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name="config")
+        deco(task)()
+    except KeyboardInterrupt:
+        _interrupted()
+        sys.exit(130)
+    finally:
+        if restore is not None:
+            restore()
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
     if _EXIT["code"]:
         sys.exit(_EXIT["code"])
+
+
+def _on_sigterm():
+    """SIGTERM (``kill``, ``timeout``, a scheduler) stops like Ctrl-C: one line, no
+    temporary files, resumable."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, stop)
+
+
+def _sigint_here():
+    """Ctrl-C reaches the whole process group; let it stop only this process.
+
+    SIGINT is blocked while psbench runs (the mask is inherited by the run processes
+    this process forks, so they never see it and print no traceback; pool workers
+    leave Ctrl-C to this process once started, see ``worker_setup``) and a thread waits
+    for it and raises KeyboardInterrupt in the main thread, which stops the pool, the
+    run processes and reports. (Ignoring SIGINT instead would also cover pool workers
+    still starting up, but a thread started earlier, e.g. by OpenBLAS, would then take
+    the signal and drop it.) Returns the function restoring the previous state (None
+    where signals cannot be managed this way)."""
+    import threading
+
+    if (threading.current_thread() is not threading.main_thread()
+            or not hasattr(signal, "pthread_sigmask") or not hasattr(signal, "SIGUSR1")):
+        return None
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    main_id = threading.main_thread().ident
+    state = {"stop": False, "hit": False}
+
+    def hit(signum, frame):        # in the main thread (also wakes a blocking wait)
+        if state["hit"]:
+            state["hit"] = False
+            raise KeyboardInterrupt
+
+    old_usr1 = signal.signal(signal.SIGUSR1, hit)
+
+    def wait():
+        while True:
+            signal.sigwait({signal.SIGINT})
+            if state["stop"]:
+                return
+            state["hit"] = True
+            signal.pthread_kill(main_id, signal.SIGUSR1)
+
+    t = threading.Thread(target=wait, name="psbench-sigint", daemon=True)
+    t.start()
+
+    def restore():
+        state["stop"] = True
+        with contextlib.suppress(Exception):
+            signal.pthread_kill(t.ident, signal.SIGINT)
+            t.join(1.0)
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        signal.signal(signal.SIGUSR1, old_usr1)
+
+    return restore
+
+
+def _interrupted():
+    """Ctrl-C: wait for the run processes to go, remove their temporary files, and say
+    how much of the work is stored (it resumes from there)."""
+    from .store import clean_temps, stored_status
+
+    _wait_children()
+    root = _WATCH.get("root")
+    if root is None:
+        print("\ninterrupted", file=sys.stderr, flush=True)
+        return
+    with contextlib.suppress(Exception):
+        clean_temps(root, grace=0.0)          # writers on this host that are gone
+    done = total = 0
+    for sweep, ids in (_WATCH.get("runs") or {}).items():
+        with contextlib.suppress(Exception):
+            st = stored_status(root, sweep, ids if len(ids) < 64 else None)
+            done += sum(1 for r in ids if r in st)
+        total += len(ids)
+    print(f"\ninterrupted: {done}/{total} stored; run the same command to resume",
+          file=sys.stderr, flush=True)
+
+
+def _wait_children(timeout=5.0):
+    """Wait (a few seconds at most) for this process's children to exit."""
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - a declared dependency
+        return
+    with contextlib.suppress(Exception):
+        kids = psutil.Process().children(recursive=True)
+        psutil.wait_procs(kids, timeout=timeout)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -76,7 +76,7 @@ def _verify(args):
     from pathlib import Path
 
     from .schema import SCHEMA_VERSION
-    from .store import StoreWarning, _files, _read_file
+    from .store import COMPACT_NAME, StoreWarning, _files, _read_file, dead_temp, temp_files
 
     root = _root(args)
     comp, runs = _files(root, args.sweep)
@@ -85,7 +85,7 @@ def _verify(args):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StoreWarning)
         for p in comp + runs:
-            t = _read_file(p)
+            t = _read_file(p)            # reads every page, verifying its checksum
             if t is None:
                 continue
             versions = set(t.column("schema_version").to_pylist())
@@ -96,6 +96,9 @@ def _verify(args):
             if p in runs and (t.num_rows != 1 or Path(p).stem != t.column("run_id")[0].as_py()):
                 print(f"{p}: per-run file holds {t.num_rows} rows / run_id mismatch")
                 problems += 1
+            if p.name == COMPACT_NAME and p.parent.name != t.column("sweep")[0].as_py():
+                print(f"{p}: holds rows of sweep {t.column('sweep')[0].as_py()!r}")
+                problems += 1
     for w in caught:
         print(str(w.message))
         problems += 1
@@ -103,9 +106,13 @@ def _verify(args):
     for (s, r), files in dups.items():
         print(f"run {s}/{r} stored {len(files)} times ({', '.join(map(str, files))}); readers "
               f"keep the latest; compact merges")
-    tmp = [p for p in (root / "runs").glob("*/.*.tmp.*")] if (root / "runs").is_dir() else []
-    if tmp:
-        print(f"{len(tmp)} temporary file(s) left by interrupted writers (compact removes old ones)")
+    tmp = temp_files(root)
+    dead = [p for p in tmp if dead_temp(p)]
+    for p in dead:
+        print(f"{p}: temporary file left by a writer that no longer runs (compact removes it)")
+    problems += len(dead)
+    if len(tmp) > len(dead):
+        print(f"{len(tmp) - len(dead)} temporary file(s) of writers that may still be running")
     print(f"{len(comp) + len(runs)} files, {len(seen)} runs, {problems} problem(s)")
     return 1 if problems else 0
 
@@ -127,7 +134,7 @@ def main(args=None):
     fn = {"ls": _ls, "summary": _summary, "compact": _compact, "verify": _verify}[args.cmd]
     try:
         return fn(args)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:
         print(f"psbench-results: error: {exc}", file=sys.stderr)
         return 2
 

@@ -11,8 +11,9 @@ normalized by :func:`normalize`; their normalized json hashes to the ``run_id``.
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
 - ``analysis``: calls ``psbench.analysis.<analysis>`` with the run parameters its
   signature accepts plus ``args``; its output is stored as json in ``payload``.
-- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true}``;
-  ``die`` kills the process running it: only for tests of worker crashes).
+- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true,
+  alloc_mb: MB}``; ``die`` kills the process running it and ``alloc_mb`` allocates that
+  much memory: only for tests of crashes and memory limits).
 
 Runs sharing a scene (:func:`scene_key`) reuse one rendered scene in
 :func:`run_chunk`.
@@ -38,7 +39,8 @@ from .params import PARAMS, normalize, run_id, scene_key, validate
 from .params import plain as _plain  # noqa: F401 - used by grid
 
 __all__ = ["PARAMS", "KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
-           "execute", "run_chunk", "format_row", "provenance", "select_lights"]
+           "execute", "run_chunk", "format_row", "provenance", "select_lights", "solve_run",
+           "base_row", "failed_row", "pinned_threads"]
 
 KINDS, EXTRAS = S.KINDS, S.EXTRAS
 
@@ -213,19 +215,28 @@ def _f(v):
     return v if math.isfinite(v) else None
 
 
-def _solve_metrics(p, sc, keep=None):
-    from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
+def solve_run(p, images, lights, object_mask, *, rounds=None):
+    """``psbench.solve`` called as run ``p`` calls it (the preflight's dry run calls this
+    too, so both check the very same arguments; it caps the mask rounds at ``rounds``)."""
     from ..solve import solve
 
     kw = dict(p.get("options") or {})          # method options, checked by normalize()
+    if rounds is not None:
+        kw["max_iter"] = min(int(kw.get("max_iter", rounds)), rounds)
     if p["weight"] is not None:
         kw["weight"] = p["weight"]
     if p["binary"]:
         kw["binary"] = True
+    return solve(images, lights, mask=p["mask"], method=p["method"], weighted=p["weighted"],
+                 object_mask=object_mask, thresholds=p["thresholds"] or None,
+                 th_scope=p["th_scope"], seed=p["seed"], **kw)
+
+
+def _solve_metrics(p, sc, keep=None):
+    from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
+
     t0 = time.perf_counter()
-    res = solve(sc.images, sc.lights, mask=p["mask"], method=p["method"], weighted=p["weighted"],
-                object_mask=sc.mask, thresholds=p["thresholds"] or None,
-                th_scope=p["th_scope"], seed=p["seed"], **kw)
+    res = solve_run(p, sc.images, sc.lights, sc.mask)
     t_solve = time.perf_counter() - t0
     if keep is not None:
         keep.update(result=res, scene=sc)
@@ -314,47 +325,12 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
         Filled with the solve's ``result`` and its ``scene`` (for pictures).
     """
     p = params
-    row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
-    row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
-    row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
-    _layout_fields(p, row)
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        validate(p)
-        if p["kind"] == "noop":
-            a = p["args"]
-            if a.get("sleep"):
-                time.sleep(float(a["sleep"]))
-            if a.get("fail"):
-                raise RuntimeError(str(a["fail"]))
-            if a.get("die"):                      # simulate a worker killed mid-run
-                import signal
-
-                os.kill(os.getpid(), signal.SIGKILL)
-            row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
-        elif p["kind"] == "cond":
-            from ..lights import layout
-
-            row["cond"] = _f(layout(p["lights"]).cond())
-        elif p["kind"] == "analysis":
-            row.update(_analysis(p))
-        else:
-            key = scene_key(p)
-            sc = cache.get(key) if cache is not None else None
-            if sc is None:
-                sc = _Scene(p)
-                if cache is not None:
-                    cache.clear()
-                    cache[key] = sc
-                row["t_render"] = sc.t_render
-            else:
-                row["t_render"] = 0.0
-            if sc.lights_read is not None:     # the lights actually used, with the row
-                cfg = json.loads(row["config"])
-                cfg["lights_read"] = sc.lights_read
-                row["config"] = json.dumps(cfg, sort_keys=True, default=str)
-            row.update(_solve_metrics(p, sc, keep))
+        with pinned_threads():
+            _compute(p, row, cache, keep)
         row["status"] = "ok"
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded, never fatal
         row["status"] = "failed"
@@ -369,6 +345,86 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
 
     row["utc"] = _dt.datetime.now(_dt.timezone.utc)
     return row
+
+
+def base_row(p, *, sweep="adhoc", experiment=None, config=None) -> dict:
+    """The parameter, identity and provenance columns of run ``p``'s row."""
+    row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
+    row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
+    row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
+    _layout_fields(p, row)
+    return row
+
+
+def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict:
+    """The row of a run that ended without writing its own (its process was killed,
+    e.g. by the out-of-memory killer)."""
+    import datetime as _dt
+
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
+    row.update(status="failed", error=str(error), traceback=str(error),
+               utc=_dt.datetime.now(_dt.timezone.utc))
+    return row
+
+
+class pinned_threads:
+    """Run with one BLAS / OpenMP thread: a run's numbers must not depend on how it was
+    launched (a single ``psbench`` call, a ``-m`` worker, a shard job), and the thread
+    count changes the summation order of multi-threaded BLAS kernels."""
+
+    def __enter__(self):
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # pragma: no cover - a declared dependency
+            self._lim = None
+            return self
+        self._lim = threadpool_limits(limits=1)
+        return self
+
+    def __exit__(self, *exc):
+        if self._lim is not None:
+            self._lim.restore_original_limits()
+        return False
+
+
+def _compute(p, row, cache, keep=None):
+    """The work of one run; fills ``row``'s metric columns."""
+    validate(p)
+    if p["kind"] == "noop":
+        a = p["args"]
+        if a.get("sleep"):
+            time.sleep(float(a["sleep"]))
+        if a.get("fail"):
+            raise RuntimeError(str(a["fail"]))
+        if a.get("alloc_mb"):                  # memory exhaustion, for tests of limits
+            row["payload"] = str(float(np.ones(int(float(a["alloc_mb"]) * 2**17)).sum()))
+        if a.get("die"):                      # simulate a run killed mid-way (OOM killer)
+            import signal
+
+            os.kill(os.getpid(), signal.SIGKILL)
+        row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
+    elif p["kind"] == "cond":
+        from ..lights import layout
+
+        row["cond"] = _f(layout(p["lights"]).cond())
+    elif p["kind"] == "analysis":
+        row.update(_analysis(p))
+    else:
+        key = scene_key(p)
+        sc = cache.get(key) if cache is not None else None
+        if sc is None:
+            sc = _Scene(p)
+            if cache is not None:
+                cache.clear()
+                cache[key] = sc
+            row["t_render"] = sc.t_render
+        else:
+            row["t_render"] = 0.0
+        if sc.lights_read is not None:     # the lights actually used, with the row
+            cfg = json.loads(row["config"])
+            cfg["lights_read"] = sc.lights_read
+            row["config"] = json.dumps(cfg, sort_keys=True, default=str)
+        row.update(_solve_metrics(p, sc, keep))
 
 
 def _store_row(root, row):

@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -19,9 +20,9 @@ from pathlib import Path
 from .._checks import PsbenchError
 from .params import run_id, scene_key
 from .progress import Progress
-from .run import run_chunk
 from .spec import LAUNCHERS
 from .store import default_root, stored_status
+from .supervise import run_supervised, worker_setup
 
 __all__ = ["LAUNCHERS", "plan", "make_chunks", "split_shards", "run_shard", "execute_runs"]
 
@@ -77,13 +78,21 @@ def run_shard(chunks, *, root, sweep, experiment=None, jobs=1):
     if _n_workers(jobs) == 1 or len(chunks) == 1:
         out = []
         for c in chunks:
-            out.extend(run_chunk(c, root=root, sweep=sweep, experiment=experiment))
+            out.extend(_summaries(run_supervised(c, root=root, sweep=sweep,
+                                                 experiment=experiment)))
         return out
-    from joblib import Parallel, delayed
+    prog = Progress(sum(len(c) for c in chunks), label=sweep, stream=open(os.devnull, "w"))
+    return _joblib(chunks, prog, jobs=jobs, root=root, sweep=sweep, experiment=experiment)
 
-    res = Parallel(n_jobs=int(jobs))(
-        delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment) for c in chunks)
-    return [r for part in res for r in part]
+
+def _summaries(rows):
+    return [{k: r.get(k) for k in ("run_id", "status", "error", "t_total")} for r in rows]
+
+
+def _pool_chunk(chunk, root, sweep, experiment, main_pid):
+    """A pool worker's task: follow the main process, then run the chunk supervised."""
+    worker_setup(main_pid)
+    return _summaries(run_supervised(chunk, root=root, sweep=sweep, experiment=experiment))
 
 
 def _n_workers(jobs):
@@ -98,26 +107,48 @@ def _n_workers(jobs):
     return n if jobs == -1 else max(1, n + 1 + jobs if jobs < 0 else jobs)
 
 
+#: pool restarts after a worker process itself was lost, before giving up
+POOL_RESTARTS = 3
+
+
 def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
     results = []
     if _n_workers(jobs) == 1 or len(chunks) == 1:
         for c in chunks:
-            res = run_chunk(c, root=root, sweep=sweep, experiment=experiment)
+            res = _summaries(run_supervised(c, root=root, sweep=sweep, experiment=experiment))
             prog.update(len(res), sum(r["status"] != "ok" for r in res))
             results.extend(res)
         return results
     from joblib import Parallel, delayed
 
-    par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
-    try:
-        for res in par(delayed(run_chunk)(c, root=root, sweep=sweep, experiment=experiment)
-                       for c in chunks):
-            prog.update(len(res), sum(r["status"] != "ok" for r in res))
-            results.extend(res)
-    except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OOM killer
-        prog.stream.write(f"\nworker pool failed ({type(exc).__name__}: {str(exc)[:300]}); "
-                          f"completed runs are stored: run the same command again to resume\n")
-        results.append({"run_id": None, "status": "failed", "error": str(exc), "t_total": None})
+    pending = list(chunks)
+    for attempt in range(POOL_RESTARTS + 1):
+        par = Parallel(n_jobs=int(jobs), return_as="generator_unordered")
+        try:
+            for res in par(delayed(_pool_chunk)(c, str(root), sweep, experiment, os.getpid())
+                           for c in pending):
+                prog.update(len(res), sum(r["status"] != "ok" for r in res))
+                results.extend(res)
+            return results
+        except Exception as exc:  # noqa: BLE001 - a worker process itself was killed
+            from .params import run_id
+
+            got = {r["run_id"] for r in results}
+            stored = stored_status(root, sweep)
+            pending = [[p for p in c if run_id(p) not in got and run_id(p) not in stored]
+                       for c in pending]
+            pending = [c for c in pending if c]
+            lost = f"{type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}"
+            if not pending:
+                return results
+            if attempt == POOL_RESTARTS:
+                prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
+                                  "runs are stored: run the same command again to resume\n")
+                results.append({"run_id": None, "status": "failed", "error": lost,
+                                "t_total": None})
+                return results
+            prog.stream.write(f"\na worker process was lost ({lost}); restarting the pool "
+                              f"for the {sum(map(len, pending))} runs not stored\n")
     return results
 
 
@@ -195,46 +226,53 @@ def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder
     # SLURM: a job is done when its result file exists and lost when squeue says it ended
     # without one (submitit's own check needs sacct and would wait forever without it)
     slurm, ended = launcher == "submitit_slurm", {}
-    while pending:
-        if time.time() - last_poll > 2.0:          # progress from the store, run by run
-            last_poll = time.time()
-            n = _written(root, sweep, ids, since)
-            if n > prog.done:
-                prog.update(n - prog.done)
-        if slurm and time.time() - last_queue > 10.0:
-            last_queue = time.time()
-            for jid, state in (_slurm_ended([str(j.job_id) for j in pending]) or {}).items():
-                ended.setdefault(jid, (last_queue, state))
-        for j in list(pending):
-            lost = None
-            if slurm:
-                finished = j.paths.result_pickle.exists()
-                t_end, state = ended.get(str(j.job_id), (None, None))
-                if not finished and t_end is not None and time.time() - t_end > _SLURM_GRACE_S:
-                    lost = f"ended ({state}) without a result; logs in {j.paths.folder}"
-            else:
-                finished = j.done()
-            if finished or lost:
-                pending.remove(j)
-                try:
-                    if lost:
-                        raise RuntimeError(lost)
-                    res = j.result()
-                except Exception as exc:  # noqa: BLE001 - a lost shard is reported, not fatal
-                    msg = f"shard job {j.job_id} failed: {type(exc).__name__}: {str(exc)[:500]}"
-                    prog.stream.write(msg + "; its stored runs are kept: run the same command "
-                                      "again to resume\n")
-                    # counted as failed (exit 1): the grid is not complete
-                    results.append({"run_id": None, "status": "failed", "error": msg,
-                                    "t_total": None})
-                    continue
-                results.extend(res)
-                n_done = len(results)
-                prog.failed = sum(r["status"] != "ok" for r in results)
-                if n_done > prog.done:
-                    prog.update(n_done - prog.done)
-        if pending:
-            time.sleep(0.5)
+    try:
+        while pending:
+            if time.time() - last_poll > 2.0:          # progress from the store, run by run
+                last_poll = time.time()
+                n = _written(root, sweep, ids, since)
+                if n > prog.done:
+                    prog.update(n - prog.done)
+            if slurm and time.time() - last_queue > 10.0:
+                last_queue = time.time()
+                for jid, state in (_slurm_ended([str(j.job_id) for j in pending]) or {}).items():
+                    ended.setdefault(jid, (last_queue, state))
+            for j in list(pending):
+                lost = None
+                if slurm:
+                    finished = j.paths.result_pickle.exists()
+                    t_end, state = ended.get(str(j.job_id), (None, None))
+                    if not finished and t_end is not None and time.time() - t_end > _SLURM_GRACE_S:
+                        lost = f"ended ({state}) without a result; logs in {j.paths.folder}"
+                else:
+                    finished = j.done()
+                if finished or lost:
+                    pending.remove(j)
+                    try:
+                        if lost:
+                            raise RuntimeError(lost)
+                        res = j.result()
+                    except Exception as exc:  # noqa: BLE001 - a lost shard is reported, not fatal
+                        msg = f"shard job {j.job_id} failed: {type(exc).__name__}: {str(exc)[:500]}"
+                        prog.stream.write(msg + "; its stored runs are kept: run the same command "
+                                          "again to resume\n")
+                        # counted as failed (exit 1): the grid is not complete
+                        results.append({"run_id": None, "status": "failed", "error": msg,
+                                        "t_total": None})
+                        continue
+                    results.extend(res)
+                    n_done = len(results)
+                    prog.failed = sum(r["status"] != "ok" for r in results)
+                    if n_done > prog.done:
+                        prog.update(n_done - prog.done)
+            if pending:
+                time.sleep(0.5)
+    except KeyboardInterrupt:
+        if launcher != "submitit_slurm":     # local jobs are this machine's: stop them too
+            for j in pending:
+                with contextlib.suppress(Exception):
+                    j.cancel(check=False)
+        raise
     return results
 
 
@@ -253,6 +291,10 @@ def execute_runs(runs, *, root, sweep, experiment=None, rerun=False, retry_faile
         raise PsbenchError(f"launcher={launcher!r} is not known; valid choices: {', '.join(LAUNCHERS)}")
     root = default_root(root)
     todo, skipped = plan(runs, root=root, sweep=sweep, rerun=rerun, retry_failed=retry_failed)
+    if todo:                       # configuration errors: refused before any work
+        from .preflight import preflight
+
+        preflight(todo, root=root, sweep=sweep)
     prog = Progress(len(todo), label=label or sweep, stream=stream, skipped=len(skipped))
     if skipped:
         prog.stream.write(f"{sweep}: {len(skipped)} of {len(runs)} runs skipped (stored)"

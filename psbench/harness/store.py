@@ -4,17 +4,29 @@ Layout under a root folder (default ``results/`` in the current directory, or th
 ``PSBENCH_RESULTS`` environment variable)::
 
     <root>/runs/<sweep>/<run_id>.parquet     one file per run, written atomically
-    <root>/compact/<sweep>.parquet           per-sweep files made by :func:`compact`
+    <root>/runs/<sweep>/compact.parquet      the sweep's runs merged by :func:`compact`
 
-``<sweep>`` is the experiment name (``+experiment=table5_3``) or the ``sweep=`` name of
-command-line runs (default ``adhoc``). Each per-run file is first written to a hidden
-temporary name in the same folder (``.<run_id>.parquet.tmp.<pid>.<rand>``) and then
-renamed with :func:`os.replace`, so a reader sees either the whole file or nothing;
-readers ignore hidden and temporary files. A run is identified by ``(sweep, run_id)``;
-re-running it replaces its file, and readers keep the latest row (largest ``utc``).
+Every row of the store is under ``<root>/runs``, so Parquet readers read the whole
+store, compacted or not, in one line (``pd.read_parquet("results/runs")``; hidden files
+are temporary files and locks, which those readers skip). ``<sweep>`` is the experiment
+name (``+experiment=table5_3``) or the ``sweep=`` name of command-line runs (default
+``adhoc``). Each file is first written to a hidden temporary name in the same folder
+(``.<name>.tmp.<pid>.<hex>.<host>``) and then renamed with :func:`os.replace`, so a
+reader sees either the whole file or nothing. A run is identified by ``(sweep,
+run_id)``; re-running it replaces its file, and readers keep the latest row (largest
+``utc``): until the next compaction a re-run compacted run is in two files.
+
+Integrity: files are written with Parquet page checksums, and every read verifies them;
+a file whose schema version is the current one must hold exactly the current columns
+and types. A file failing either check is named in a :class:`StoreWarning` and skipped
+(``psbench-results verify`` lists them). Compactions of one sweep are serialized by a
+lock file (``runs/<sweep>/.compact.lock``) and a per-run file is removed only after its
+row was read back from the new compact file. Stores of the previous layout
+(``<root>/compact/<sweep>.parquet``) are read, and moved by the next compaction.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 import warnings
@@ -25,11 +37,16 @@ import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
 from .._checks import PsbenchError
-from .._fs import atomic_write
+from .._fs import HOST, atomic_write
 from .schema import COLUMNS, META_KEY, REQUIRED, SCHEMA, SCHEMA_VERSION, conform, row_table
 
-__all__ = ["default_root", "run_path", "write_row", "write_rows", "stored_status", "read_run",
-           "read_store", "compact", "StoreWarning"]
+__all__ = ["default_root", "run_path", "compact_path", "write_row", "write_rows",
+           "stored_status", "read_run", "read_store", "compact", "temp_files", "dead_temp",
+           "check_writable", "StoreWarning", "COMPACT_NAME"]
+
+#: name of a sweep's compacted file, beside its per-run files
+COMPACT_NAME = "compact.parquet"
+_LOCK_NAME = ".compact.lock"
 
 
 class StoreWarning(UserWarning):
@@ -55,8 +72,47 @@ def run_path(root, sweep, run_id) -> Path:
     return default_root(root) / "runs" / _check_name(sweep) / f"{_check_name(run_id, 'run_id')}.parquet"
 
 
+def compact_path(root, sweep) -> Path:
+    """Path of the compacted file of ``sweep``."""
+    return default_root(root) / "runs" / _check_name(sweep) / COMPACT_NAME
+
+
+def _legacy_compact(root, sweep) -> Path:
+    return default_root(root) / "compact" / f"{_check_name(sweep)}.parquet"
+
+
+def _write_parquet(table: pa.Table, fh) -> None:
+    pq.write_table(table, fh, compression="zstd", write_page_checksum=True)
+
+
 def _atomic_write(table: pa.Table, path: Path) -> Path:
-    return atomic_write(path, lambda fh: pq.write_table(table, fh, compression="zstd"))
+    return atomic_write(path, lambda fh: _write_parquet(table, fh))
+
+
+def check_writable(root, sweep=None) -> Path:
+    """Refuse (one line) a store where rows cannot be written, before any work.
+
+    Writes and removes a temporary file in ``<root>/runs[/<sweep>]`` or, when that
+    does not exist yet, in its nearest existing parent (permission bits alone do not
+    tell: root ignores them, read-only mounts do not show in them).
+    """
+    root = default_root(root)
+    d = root / "runs" / _check_name(sweep) if sweep is not None else root / "runs"
+    base = d.absolute()
+    while not base.exists() and base.parent != base:    # nothing is created here
+        base = base.parent
+    try:
+        if not base.is_dir():
+            raise NotADirectoryError(20, "Not a directory", str(base))
+        probe = base / f".write-test.tmp.{os.getpid()}.0.{HOST}"
+        with open(probe, "wb") as fh:
+            fh.write(b"psbench")
+        probe.unlink()
+    except OSError as exc:
+        raise PsbenchError(f"results_dir={str(root)!r} is not writable ({exc.strerror or exc}: "
+                           f"{exc.filename or d}); choose another with results_dir=DIR or "
+                           "$PSBENCH_RESULTS") from None
+    return root
 
 
 def write_row(root, row: dict) -> Path:
@@ -93,15 +149,41 @@ def _visible(path: Path) -> bool:
     return path.suffix == ".parquet" and not path.name.startswith(".")
 
 
-def _read_file(path: Path, columns=None):
-    """Read a store file conformed to SCHEMA; None (with a warning) if corrupt/foreign."""
+class _Vanished(Exception):
+    """A listed file was removed (by a compaction) before it was read."""
+
+
+def _check_schema(path, schema):
+    """Current-version files hold exactly the current columns and types: a difference
+    is corruption (e.g. a flipped bit in the footer), not an older layout."""
+    meta = schema.metadata or {}
+    if meta.get(META_KEY) != str(SCHEMA_VERSION).encode():
+        return None
+    for f in schema:
+        want = SCHEMA.field(f.name).type if f.name in COLUMNS else None
+        if want is None or f.type != want:
+            return (f"column {f.name!r} ({f.type}) is not in schema version {SCHEMA_VERSION}"
+                    if want is None else f"column {f.name!r} is {f.type}, expected {want}")
+    return None
+
+
+def _read_file(path: Path, columns=None, *, missing_ok=False):
+    """Read a store file conformed to SCHEMA, verifying its page checksums; None (with
+    a warning) if corrupt/foreign. A file that vanished raises :class:`_Vanished` when
+    ``missing_ok`` (the caller re-lists), else it is skipped silently."""
     try:
-        pf = pq.ParquetFile(path)
-        meta = pf.schema_arrow.metadata or {}
-        names = set(pf.schema_arrow.names)
+        pf = pq.ParquetFile(path, page_checksum_verification=True)
+        schema = pf.schema_arrow
+        meta = schema.metadata or {}
+        names = set(schema.names)
         if META_KEY not in meta or not set(REQUIRED) <= names:
             warnings.warn(f"psbench results store: skipping {path}: not a psbench results "
                           f"file (missing schema metadata or columns {list(REQUIRED)})",
+                          StoreWarning, stacklevel=3)
+            return None
+        bad = _check_schema(path, schema)
+        if bad is not None:
+            warnings.warn(f"psbench results store: skipping {path}: corrupt ({bad})",
                           StoreWarning, stacklevel=3)
             return None
         cols = None if columns is None else [c for c in columns if c in names]
@@ -109,6 +191,10 @@ def _read_file(path: Path, columns=None):
         if columns is not None:
             return table
         return conform(table)
+    except FileNotFoundError:
+        if missing_ok:
+            raise _Vanished(path) from None
+        return None
     except Exception as exc:  # noqa: BLE001 - any unreadable file is skipped, never fatal
         warnings.warn(f"psbench results store: skipping {path}: unreadable ({type(exc).__name__}: "
                       f"{exc})", StoreWarning, stacklevel=3)
@@ -117,20 +203,42 @@ def _read_file(path: Path, columns=None):
 
 def _files(root: Path, sweep=None, per_run=True):
     """(compact files, per-run files) currently visible in the store."""
-    compact_dir, runs_dir = root / "compact", root / "runs"
+    runs_dir = root / "runs"
     if sweep is None:
-        comp = sorted(p for p in compact_dir.glob("*.parquet") if _visible(p)) \
-            if compact_dir.is_dir() else []
-        runs = sorted(p for p in runs_dir.glob("*/*.parquet") if _visible(p)) \
+        dirs = sorted(p for p in runs_dir.iterdir() if p.is_dir() and not p.name.startswith(".")) \
             if runs_dir.is_dir() else []
+        legacy = root / "compact"
+        comp = sorted(p for p in legacy.glob("*.parquet") if _visible(p)) if legacy.is_dir() else []
     else:
         sweep = _check_name(sweep)
-        c = compact_dir / f"{sweep}.parquet"
-        comp = [c] if c.is_file() else []
-        d = runs_dir / sweep
-        runs = sorted(p for p in d.glob("*.parquet") if _visible(p)) \
-            if d.is_dir() and per_run else []
+        dirs = [runs_dir / sweep] if (runs_dir / sweep).is_dir() else []
+        old = _legacy_compact(root, sweep)
+        comp = [old] if old.is_file() else []
+    runs = []
+    for d in dirs:
+        for p in sorted(d.glob("*.parquet")):
+            if not _visible(p):
+                continue
+            if p.name == COMPACT_NAME:
+                comp.append(p)
+            elif per_run:
+                runs.append(p)
     return comp, runs
+
+
+def _read_all(list_files, reader, attempts=5):
+    """Read the listed files; when a compaction removed one between listing and
+    reading, list and read again (its rows are then in the new compact file)."""
+    for i in range(attempts):
+        files = list_files()
+        try:
+            return [(p, reader(p)) for p in files]
+        except _Vanished:
+            if i == attempts - 1:
+                raise PsbenchError("the results store keeps changing under the reader (a "
+                                   "compaction is running); try again") from None
+            time.sleep(0.05 * (i + 1))
+    return []
 
 
 def _dedup(df):
@@ -163,8 +271,14 @@ def read_store(root=None, experiment=None, *, sweep=None, status=None):
         skipped; an empty or missing store gives an empty frame with all columns.
     """
     root = default_root(root)
-    comp, runs = _files(root, sweep if sweep is not None else experiment)
-    tables = [t for t in (_read_file(p) for p in comp + runs) if t is not None]
+    name = sweep if sweep is not None else experiment
+
+    def listing():
+        comp, runs = _files(root, name)
+        return comp + runs
+
+    read = _read_all(listing, lambda p: _read_file(p, missing_ok=True))
+    tables = [t for _, t in read if t is not None]
     table = pa.concat_tables(tables) if tables else SCHEMA.empty_table()
     df = table.to_pandas()
     df = _dedup(df)
@@ -181,12 +295,17 @@ def stored_status(root, sweep, run_ids=None) -> dict:
     With ``run_ids``, only those runs' per-run files (and the compact file) are read.
     """
     root = default_root(root)
-    comp, runs = _files(root, sweep, per_run=run_ids is None)
-    if run_ids is not None:
-        runs = [p for p in (run_path(root, sweep, r) for r in run_ids) if p.is_file()]
+
+    def listing():
+        comp, runs = _files(root, sweep, per_run=run_ids is None)
+        if run_ids is not None:
+            runs = [p for p in (run_path(root, sweep, r) for r in run_ids) if p.is_file()]
+        return comp + runs
+
+    read = _read_all(listing, lambda p: _read_file(p, columns=["run_id", "status", "utc"],
+                                                    missing_ok=True))
     latest = {}
-    for p in comp + runs:
-        t = _read_file(p, columns=["run_id", "status", "utc"])
+    for _, t in read:
         if t is None:
             continue
         for rid, st, utc in zip(*(t.column(c).to_pylist() for c in ("run_id", "status", "utc"))):
@@ -199,14 +318,13 @@ def stored_status(root, sweep, run_ids=None) -> dict:
 def read_run(root, sweep, run_id):
     """The stored row (dict) of one run, or None."""
     root = default_root(root)
-    p = run_path(root, sweep, run_id)
-    files = [p] if p.is_file() else []
-    c = root / "compact" / f"{_check_name(sweep)}.parquet"
-    if c.is_file():
-        files.append(c)
+
+    def listing():
+        return [f for f in (run_path(root, sweep, run_id), compact_path(root, sweep),
+                            _legacy_compact(root, sweep)) if f.is_file()]
+
     best = None
-    for f in files:
-        t = _read_file(f)
+    for _, t in _read_all(listing, lambda p: _read_file(p, missing_ok=True)):
         if t is None:
             continue
         for r in t.filter(pa.compute.equal(t.column("run_id"), run_id)).to_pylist():
@@ -216,14 +334,111 @@ def read_run(root, sweep, run_id):
     return best
 
 
-def compact(root=None, *, sweep=None, min_tmp_age=3600.0, verbose=False) -> dict:
-    """Merge per-run files into ``<root>/compact/<sweep>.parquet`` (one per sweep).
+# ---------------------------------------------------------------------------- temporaries
+def temp_files(root=None) -> list[Path]:
+    """Hidden temporary files (``.*.tmp.*``) left in the store by writers."""
+    root = default_root(root)
+    out = []
+    for d in (root / "runs", root / "compact"):
+        if d.is_dir():
+            out += list(d.glob(".*.tmp.*")) + list(d.glob("*/.*.tmp.*"))
+    return sorted(set(out))
 
-    The merged rows (previous compact file + per-run files) are de-duplicated by
-    ``run_id`` (latest ``utc`` wins) and written atomically; only then are the merged
-    per-run files removed (each only if it did not change since it was read).
-    Corrupt/foreign files are left in place (with a warning). Hidden temporary files
-    older than ``min_tmp_age`` seconds (left by killed writers) are removed.
+
+def _pid_alive(pid) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:          # EPERM: it exists (another user's)
+        return True
+    return True
+
+
+def dead_temp(path, *, now=None, min_age=3600.0, grace=2.0) -> bool:
+    """True when the temporary file's writer is provably gone: written on this host by
+    a process that no longer exists (and older than ``grace`` seconds), or untouched
+    for ``min_age`` seconds (a writer on another host)."""
+    path = Path(path)
+    try:
+        age = (time.time() if now is None else now) - path.stat().st_mtime
+    except OSError:
+        return False
+    if age > min_age:
+        return True
+    parts = path.name.split(".tmp.", 1)[-1].split(".", 2)     # pid, hex, host
+    if len(parts) == 3 and parts[0].isdigit() and parts[2] == HOST and age > grace:
+        return not _pid_alive(int(parts[0]))
+    return False
+
+
+def clean_temps(root=None, *, min_age=3600.0, grace=2.0) -> list[Path]:
+    """Remove the store's temporary files whose writers are provably dead
+    (:func:`dead_temp`)."""
+    removed = []
+    now = time.time()
+    for p in temp_files(root):
+        if dead_temp(p, now=now, min_age=min_age, grace=grace):
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed.append(p)
+    return removed
+
+
+# ---------------------------------------------------------------------------- compaction
+@contextlib.contextmanager
+def _locked(folder: Path):
+    """Exclusive lock of one sweep's compaction (blocks until the holder is done)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    fh = open(folder / _LOCK_NAME, "a+b")
+    try:
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - not POSIX: no lock
+            fcntl = None
+        if fcntl is not None:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        yield
+    finally:
+        fh.close()          # releases the lock
+
+
+def _sig(st):
+    return (st.st_mtime_ns, st.st_size, st.st_ino)
+
+
+def _remove_merged(p: Path, sig) -> bool:
+    """Remove per-run file ``p`` if it is still the file that was merged (``sig``).
+
+    The file is first renamed aside (atomic), so a writer replacing ``p`` meanwhile is
+    never lost: if what was moved aside is not the merged file, it is put back unless
+    an even newer ``p`` exists by then."""
+    aside = p.with_name(f".{p.name}.tmp.{os.getpid()}.merged.{HOST}")
+    try:
+        os.rename(p, aside)
+    except OSError:
+        return False
+    try:
+        moved = _sig(aside.stat())
+        if moved != sig:
+            with contextlib.suppress(FileExistsError):
+                os.link(aside, p)          # create-if-absent: never over a newer file
+            return False
+        return True
+    finally:
+        with contextlib.suppress(OSError):
+            aside.unlink()
+
+
+def compact(root=None, *, sweep=None, min_tmp_age=3600.0, verbose=False) -> dict:
+    """Merge each sweep's per-run files into ``<root>/runs/<sweep>/compact.parquet``.
+
+    Under the sweep's lock, the merged rows (previous compact file + per-run files) are
+    de-duplicated by ``run_id`` (latest ``utc`` wins) and written atomically; the new
+    file is read back, and only the per-run files whose row is in it (and that did not
+    change since they were read) are removed. Corrupt/foreign files are left in place
+    (with a warning). Temporary files whose writers are provably dead
+    (:func:`dead_temp`) are removed.
 
     Returns
     -------
@@ -232,49 +447,63 @@ def compact(root=None, *, sweep=None, min_tmp_age=3600.0, verbose=False) -> dict
     """
     root = default_root(root)
     runs_dir = root / "runs"
-    names = [sweep] if sweep is not None else (
-        sorted(p.name for p in runs_dir.iterdir() if p.is_dir() and not p.name.startswith("."))
-        if runs_dir.is_dir() else [])
+    names = [sweep] if sweep is not None else sorted(
+        {p.name for p in runs_dir.iterdir() if p.is_dir() and not p.name.startswith(".")}
+        if runs_dir.is_dir() else set())
+    if sweep is None and (root / "compact").is_dir():
+        names = sorted(set(names) | {p.stem for p in (root / "compact").glob("*.parquet")
+                                     if _visible(p)})
     out = {}
-    now = time.time()
     for name in names:
         d = runs_dir / _check_name(name)
-        if d.is_dir():
-            for tmp in d.glob(".*.tmp.*"):
-                try:
-                    if now - tmp.stat().st_mtime > min_tmp_age:
-                        tmp.unlink()
-                except OSError:
-                    pass
-        comp, runs = _files(root, name)
-        if not runs:
-            continue
-        tables, merged = [], []
-        for p in comp + runs:
-            try:
-                st = p.stat()
-            except OSError:
-                continue
-            t = _read_file(p)
-            if t is None:
-                continue
-            tables.append(t)
-            if p in runs:
-                merged.append((p, (st.st_mtime_ns, st.st_size, st.st_ino)))
-        if not merged:
-            continue
-        df = _dedup(pa.concat_tables(tables).to_pandas())
-        table = pa.Table.from_pandas(df[list(COLUMNS)], schema=SCHEMA, preserve_index=False)
-        target = root / "compact" / f"{name}.parquet"
-        _atomic_write(table, target)
-        for p, sig in merged:
-            try:
-                st = p.stat()
-                if (st.st_mtime_ns, st.st_size, st.st_ino) == sig:
-                    p.unlink()
-            except OSError:
-                pass
-        out[name] = table.num_rows
-        if verbose:
-            print(f"compacted {len(merged)} run files into {target} ({table.num_rows} rows)")
+        with _locked(d):
+            n = _compact_one(root, name, d, verbose)
+        if n is not None:
+            out[name] = n
+    clean_temps(root, min_age=min_tmp_age)
     return out
+
+
+def _compact_one(root, name, d, verbose):
+    comp, runs = _files(root, name)
+    legacy = [p for p in comp if p.parent != d]
+    if not runs and not legacy:
+        return None
+    tables, merged = [], []
+    for p in comp + runs:
+        try:
+            st = p.stat()
+        except OSError:
+            continue
+        t = _read_file(p)
+        if t is None:
+            continue
+        tables.append(t)
+        if p not in comp:
+            rid = t.column("run_id")[0].as_py() if t.num_rows == 1 else None
+            merged.append((p, _sig(st), rid, t.column("utc")[0].value if t.num_rows == 1
+                           else None))
+    if not tables:
+        return None
+    df = _dedup(pa.concat_tables(tables).to_pandas())
+    table = pa.Table.from_pandas(df[list(COLUMNS)], schema=SCHEMA, preserve_index=False)
+    target = d / COMPACT_NAME
+    _atomic_write(table, target)
+    # read the new file back: a per-run file goes only if its row is in it
+    back = _read_file(target, columns=["run_id", "utc"])
+    have = {}
+    if back is not None:
+        for rid, u in zip(back.column("run_id").to_pylist(), back.column("utc")):
+            have[rid] = max(have.get(rid, -1), -1 if u.value is None else u.value)
+    removed = 0
+    for p, sig, rid, utc in merged:    # its row, or a newer one of the run, is in the file
+        kept = rid in have and (utc is None or have[rid] >= utc)
+        if kept and _remove_merged(p, sig):
+            removed += 1
+    if back is not None:
+        for p in legacy:
+            with contextlib.suppress(OSError):
+                p.unlink()
+    if verbose:
+        print(f"compacted {removed} run files into {target} ({table.num_rows} rows)")
+    return table.num_rows

@@ -137,13 +137,27 @@ def run(images, lights, *, tokens, thresholds, options, object_mask, seed=0, met
     if masked and not plain:
         info["changed"] = changed
     normal = masked and any(s.stage == "normal" for s in specs)
-    return finish(ctx, b, valid, weights, timer=timer, name=name,
+    return _finite(finish(ctx, b, valid, weights, timer=timer, name=name,
                   method=method.name if method is not None else "ps",
                   iterations=rounds if normal else int(np.max(fit.iterations, initial=0)),
                   info=info,
                   want_height=want_height, truth=truth, ne=ne, plain=plain,
                   residual=residual, ring_weights=fit.ring_weights, fields=fit.fields,
-                  result_type=fit.result_type, converged=info.get("converged", fit.converged))
+                  result_type=fit.result_type, converged=info.get("converged", fit.converged)),
+                   images, lights)
+
+
+def _finite(res, images, lights):
+    """Finite outputs or an error: albedo rho = |I| / mu beyond float32's range (or a
+    method that diverged) must not pass as a result."""
+    bad = ~np.isfinite(res.albedo) | ~np.isfinite(res.normals).all(axis=-1)
+    if bad.any():
+        p = np.asarray(lights.power, dtype=float)
+        raise PsbenchError(
+            f"solve: the normals / albedo are not finite at {int(bad.sum())} pixel(s): images "
+            f"up to {float(np.abs(images).max()):.3g} under light powers {p.min():.3g}..{p.max():.3g} "
+            "give albedos beyond float32's range; rescale the images or the light powers")
+    return res
 
 
 def _measure(ctx):
@@ -390,23 +404,27 @@ class _Completer:
         self.S32 = self.S.astype(np.float32)
         self.have = np.zeros(self.flat.shape[1], dtype=bool)
         self.order = None
+        # counts and light indices wide enough for any light count (uint8 up to 255
+        # lights; a wider type beyond, where 256 valid observations would wrap to 0)
+        self.count_type = np.min_scalar_type(k)
+        self.index_type = np.min_scalar_type(max(k - 1, 0))
 
     def _ensure(self, cols):
         miss = cols[~self.have[cols]]
         if miss.size == 0:
             return
         if self.order is None:
-            self.order = np.zeros((self.k, self.flat.shape[1]), dtype=np.uint8)
+            self.order = np.zeros((self.k, self.flat.shape[1]), dtype=self.index_type)
         sub = self.flat[:, miss]
         r = sub - self.S32 @ (self.P @ sub)
         np.abs(r, out=r)
-        self.order[:, miss] = np.argsort(r, axis=0, kind="stable").astype(np.uint8)
+        self.order[:, miss] = np.argsort(r, axis=0, kind="stable").astype(self.index_type)
         self.have[miss] = True
 
     def __call__(self, valid, cols=None):
         """Complete ``valid`` (k, n) in place where short; ``cols`` maps its columns to
         pixel indices (None: all pixels). Returns ``valid``."""
-        cnt = valid.sum(axis=0, dtype=np.uint8)
+        cnt = valid.sum(axis=0, dtype=self.count_type)
         short = np.flatnonzero(cnt < 3)
         if short.size == 0:
             return valid

@@ -63,6 +63,12 @@ def wls(images, S, weights=None):
         return ls(images, S)
     k, H, W = images.shape
     S = np.asarray(S, dtype=np.float64)
+    # the normal matrix holds products of two light vectors in float32: scale S by a
+    # power of two (exact) so that very bright or dim lights (power 1e30 or 1e-30)
+    # neither overflow nor underflow; b scales back by the same factor
+    c = _pow2(np.sqrt(np.max(np.einsum("ij,ij->i", S, S))))
+    if c != 1.0:
+        S = S * c
     outer = (S[:, :, None] * S[:, None, :])[:, _IU[0], _IU[1]].astype(np.float32)  # (k, 6)
     St = S.T.astype(np.float32)  # (3, k)
     I2 = images.reshape(k, -1)
@@ -76,7 +82,19 @@ def wls(images, S, weights=None):
         a = outer.T @ w  # (6, n)
         r = St @ (w * I2[:, lo:hi])  # (3, n)
         out[lo:hi] = _solve_sym3(a, r, fallback=P @ I2[:, lo:hi])
+    if c != 1.0:
+        out *= np.float32(c)
     return out.reshape(H, W, 3)
+
+
+def _pow2(scale) -> float:
+    """The power of two nearest to 1 / ``scale`` (1.0 for scales near 1, 0 or non-finite):
+    multiplying by it is exact in floating point."""
+    scale = float(scale)
+    if not np.isfinite(scale) or scale <= 0.0:
+        return 1.0
+    e = int(np.round(np.log2(scale)))
+    return 1.0 if e == 0 else float(2.0 ** -e)
 
 
 def _solve_sym3(a, r, fallback):
@@ -105,26 +123,47 @@ def _solve_sym3(a, r, fallback):
 def split(b, *, eps=1e-6):
     """Split rho * n into unit normals and albedo.
 
-    Pixels with albedo <= ``eps`` (all intensities about zero) get the normal
-    (0, 0, 1) and albedo 0, as the thesis prescribes (Section 3.2).
+    Pixels whose albedo is at most ``eps`` times the mean albedo (all intensities about
+    zero, relative to the data's own scale) get the normal (0, 0, 1) and albedo 0, as
+    the thesis prescribes (Section 3.2). The cut-off is relative so that images in any
+    unit (x 1e-6, or under lights of power 1e30) give the same normals; the norm is
+    computed without overflow or underflow for any finite float32 ``b``.
 
     Returns
     -------
     normals : (H, W, 3) float32
     albedo : (H, W) float32
     """
-    eps = np.float32(eps)
-    # one pass over b (no (H, W, 3) temporary); ~2x faster than b * b summed by slices
-    rho = np.einsum("...c,...c->...", b, b)
-    np.sqrt(rho, out=rho)
-    inv = np.maximum(rho, eps)
+    rho = _norm3(b)
+    fin = np.isfinite(rho)
+    ref = float(np.mean(rho, where=fin)) if fin.any() else 0.0
+    cut = np.float32(eps * ref) if np.isfinite(ref) else np.float32(0.0)
+    bad = rho <= cut
+    inv = np.where(bad, np.float32(1.0), rho)
     np.divide(np.float32(1.0), inv, out=inv)
     n = b * inv[..., None]
-    bad = rho <= eps
     if bad.any():
         n[bad] = (0.0, 0.0, 1.0)
         rho[bad] = 0.0
     return n, rho.astype(np.float32, copy=False)
+
+
+def _norm3(b):
+    """|b| over the last axis, float32: one pass normally; rescaled by a power of two
+    (exact) when the squares would overflow (|b| > ~1e19) or lose precision to
+    underflow (|b| < ~1e-17)."""
+    # one pass over b (no (H, W, 3) temporary); ~2x faster than b * b summed by slices
+    with np.errstate(over="ignore", under="ignore"):
+        rho2 = np.einsum("...c,...c->...", b, b)
+    top = float(np.max(rho2, initial=0.0)) if rho2.size else 0.0
+    if np.isfinite(top) and (top > 1e-30 or (top == 0.0 and not b.any())):  # max keeps NaN/inf
+        return np.sqrt(rho2, out=rho2)
+    amax = np.abs(b).max(initial=0.0, where=np.isfinite(b))
+    c = np.float32(_pow2(amax))
+    bs = b * c
+    rho = np.sqrt(np.einsum("...c,...c->...", bs, bs))
+    rho /= c
+    return rho
 
 
 def lambert(b, S):
@@ -165,15 +204,32 @@ def residual_norm(images, b, S, valid=None, *, step=16384):
     V = None if valid is None else valid.reshape(k, -1)
     N = I2.shape[1]
     out = np.empty(N, dtype=np.float32)
-    for lo in range(0, N, step):
-        hi = min(N, lo + step)
-        r = I2[:, lo:hi] - S32 @ B[lo:hi].T
+
+    def block(lo, hi, dtype):
+        r = I2[:, lo:hi].astype(dtype, copy=False) - S32.astype(dtype) @ B[lo:hi].T.astype(dtype)
         r *= r
         if V is not None:
             r *= V[:, lo:hi]
-        out[lo:hi] = r.sum(axis=0)
+        return r.sum(axis=0)
+
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        for lo in range(0, N, step):
+            hi = min(N, lo + step)
+            out[lo:hi] = block(lo, hi, np.float32)
+    if _out_of_range(out):   # squares beyond float32 (|I| > ~1e19 or < ~1e-15): float64
+        for lo in range(0, N, step):
+            hi = min(N, lo + step)
+            out[lo:hi] = np.sqrt(block(lo, hi, np.float64))
+        return out.reshape(P)
     np.sqrt(out, out=out)
     return out.reshape(P)
+
+
+def _out_of_range(sq) -> bool:
+    """True when sums of squares overflowed float32 or are so small that their
+    squares lost precision (then they are recomputed in float64)."""
+    top = float(np.max(sq, initial=0.0))
+    return not np.isfinite(top) or 0.0 < top < 1e-30
 
 
 def ls_residual_norm(images, S):
@@ -190,12 +246,20 @@ def ls_residual_norm(images, S):
     out = np.empty(N, dtype=np.float32)
     step = 4096  # keeps the (k - 3, step) block in cache
     X = np.empty((k - 3, step), dtype=np.float32)
-    for lo in range(0, N, step):
-        hi = min(N, lo + step)
-        Xv = X[:, :hi - lo]
-        np.matmul(U, I2[:, lo:hi], out=Xv)
-        Xv *= Xv
-        Xv.sum(axis=0, out=out[lo:hi])
+    with np.errstate(over="ignore", under="ignore"):
+        for lo in range(0, N, step):
+            hi = min(N, lo + step)
+            Xv = X[:, :hi - lo]
+            np.matmul(U, I2[:, lo:hi], out=Xv)
+            Xv *= Xv
+            Xv.sum(axis=0, out=out[lo:hi])
+    if _out_of_range(out):   # squares beyond float32: float64 (rare, extreme scales)
+        U64 = U.astype(np.float64)
+        for lo in range(0, N, step):
+            hi = min(N, lo + step)
+            x = U64 @ I2[:, lo:hi].astype(np.float64)
+            out[lo:hi] = np.sqrt(np.einsum("ij,ij->j", x, x))
+        return out.reshape(H, W)
     np.sqrt(out, out=out)
     return out.reshape(H, W)
 

@@ -1,8 +1,8 @@
 """Harness end to end: the ``psbench`` command through subprocesses at tiny sizes.
 
 Covers: one run prints a row and stores it; a -m sweep stores one row per run and a
-re-run does no work; a SIGKILLed parallel sweep resumes to exactly its rows; a failing
-run is recorded without stopping the sweep; clean errors (exit 2) for unknown names;
+re-run does no work; a configuration error refuses a sweep before any run; a SIGKILLed
+parallel sweep resumes to exactly its rows; clean errors (exit 2) for unknown names;
 nothing is written to the current directory; experiments through the command line.
 """
 import os
@@ -55,7 +55,7 @@ def test_single_run_prints_row_and_keeps_cwd_clean(tmp_path):
     assert r2.returncode == 0 and "skipped (stored)" in r2.stdout
 
 
-def test_sweep_six_rows_rerun_no_work_failed_recorded(tmp_path):
+def test_sweep_six_rows_rerun_no_work_config_error_refused(tmp_path):
     res = tmp_path / "res"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -66,17 +66,17 @@ def test_sweep_six_rows_rerun_no_work_failed_recorded(tmp_path):
     assert len(df) == 6 and set(df["status"]) == {"ok"}
     assert sorted(df["lights"].unique()) == ["30x8", "45x8", "60x8"]
     mt = {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()}
-    # again, plus NL (needs 4 images: fails at solve time): the 6 stored runs do no work,
-    # the 3 NL runs are recorded as failed and the sweep goes on
+    # again, plus NL (needs 4 images): a configuration error refuses the whole sweep
+    # before any run, and nothing is stored
     r2 = psbench("-m", "mask=None,Th,NL", *common, cwd=cwd)
-    assert r2.returncode == 0, r2.stderr
-    assert r2.stdout.count("skipped (stored)") == 6 and r2.stdout.count("FAILED") == 3
+    assert r2.returncode == 2 and "NL needs exactly 4 images" in r2.stderr
+    assert "Traceback" not in r2.stderr and r2.stdout.count("stored") == 0
+    assert {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()} == mt
+    # the stored runs again: no work (a run failing while it runs is stored as failed and
+    # the sweep goes on: tests/harness/test_run_faults.py)
+    r3 = psbench("-m", "mask=None,Th", *common, cwd=cwd)
+    assert r3.returncode == 0 and r3.stdout.count("skipped (stored)") == 6
     assert {p: p.stat().st_mtime_ns for p in mt} == mt
-    df = _rows(res)
-    assert len(df) == 9 and (df["status"] == "failed").sum() == 3
-    err = df.loc[df["status"] == "failed", "error"].iloc[0]
-    assert "4 images" in err and "NL" in err
-    assert df.loc[df["status"] == "failed", "traceback"].iloc[0]
     assert list(cwd.iterdir()) == []
 
 
@@ -117,8 +117,10 @@ def test_clean_errors_exit_2(tmp_path):
     r = psbench("size=32", "surface=blob", cwd=tmp_path)
     assert r.returncode == 2 and "semisphere" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "results" / "runs").exists()       # config errors store nothing
-    r = psbench("colour=red", cwd=tmp_path)                    # unknown key: Hydra's error
-    assert r.returncode != 0 and "colour" in r.stderr
+    r = psbench("colour=red", cwd=tmp_path)                    # unknown key: refused
+    assert r.returncode == 2 and "unknown key 'colour'" in r.stderr
+    r = psbench("+nosie=0.3", cwd=tmp_path)                    # a typo: refused, not ignored
+    assert r.returncode == 2 and "did you mean 'noise'" in r.stderr
     r = psbench("size=32", "options.bogus=1", cwd=tmp_path)    # checked by the options class
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "'bogus'" in r.stderr and "max_iter" in r.stderr

@@ -86,8 +86,7 @@ def test_rerun_latest_wins_and_compaction_no_loss_no_dup(tmp_path):
         store.write_row(tmp_path, _row(f"r{i}", utc=i))
     store.write_row(tmp_path, _row("x0", sweep="t", utc=0))
     assert store.compact(tmp_path) == {"s": 5, "t": 1}
-    assert not list((tmp_path / "runs" / "s").glob("*.parquet"))
-    assert (tmp_path / "compact" / "s.parquet").is_file()
+    assert [p.name for p in (tmp_path / "runs" / "s").glob("*.parquet")] == ["compact.parquet"]
     # further runs: two new, one re-run of a compacted run (newer utc, different value)
     store.write_row(tmp_path, _row("r5", utc=10))
     store.write_row(tmp_path, _row("r6", utc=11))
@@ -99,7 +98,7 @@ def test_rerun_latest_wins_and_compaction_no_loss_no_dup(tmp_path):
     df2 = store.read_store(tmp_path)
     assert len(df2) == 8 and not df2.duplicated(["sweep", "run_id"]).any()
     assert df2.set_index("run_id").loc["r2", "ne_mean"] == 9.0
-    assert pq.ParquetFile(tmp_path / "compact" / "s.parquet").schema_arrow.metadata[META_KEY]
+    assert pq.ParquetFile(tmp_path / "runs" / "s" / "compact.parquet").schema_arrow.metadata[META_KEY]
     assert store.compact(tmp_path) == {}          # nothing left to merge
 
 
