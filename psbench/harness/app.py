@@ -35,6 +35,7 @@ from pathlib import Path
 
 from .._checks import PsbenchError
 from . import spec as S
+from ._config import CONFIG_PATH, _base_params
 from .checks import _precheck, check_keys
 from .store import run_path
 
@@ -49,7 +50,6 @@ _KEYS = tuple(p.name for p in S.PARAMS + S.SETTINGS if p.name != "experiment")
 # mapping parameters whose entries are set as "name.key=value" (Hydra needs "++")
 _MAPPINGS = tuple(p.name for p in S.PARAMS if p.type == "mapping")
 #: the one place Hydra's configs are loaded from
-CONFIG_PATH = "pkg://psbench.conf"
 
 
 def _fix_argv(argv):
@@ -98,33 +98,6 @@ def _cwd() -> Path:
         return Path(HydraConfig.get().runtime.cwd)
     except ValueError:
         return Path.cwd()
-
-
-def _overridden(*keys) -> bool:
-    from hydra.core.hydra_config import HydraConfig
-
-    try:
-        over = HydraConfig.get().overrides.task
-    except ValueError:
-        return False
-    names = {o.lstrip("+~").split("=", 1)[0] for o in over}
-    return any(k in names for k in keys)
-
-
-def _base_params(cfg, overridden=None) -> dict:
-    """The run parameters of ``cfg``; ``overridden``: the keys set on the command line
-    (default: read from Hydra's config of the running job)."""
-    from omegaconf import OmegaConf
-
-    c = OmegaConf.to_container(cfg, resolve=True)
-    base = {k: c.get(k) for k in S.param_names(aliases=True)}
-    given = (_overridden("lights", "zenith", "count") if overridden is None
-             else bool({"lights", "zenith", "count"} & set(overridden)))
-    if c.get("data") is not None and not given:
-        base.pop("lights")           # a data folder uses all its lights by default
-        base.pop("zenith")
-        base.pop("count")
-    return base
 
 
 def _err(msg):

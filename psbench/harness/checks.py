@@ -30,7 +30,7 @@ _OTHER_MODES = ("--cfg", "-c", "--info", "-i", "--shell-completion", "-sc", "--r
 def _compose(overrides=()):
     from hydra import compose, initialize_config_module
 
-    from .app import CONFIG_PATH
+    from ._config import CONFIG_PATH
 
     with initialize_config_module(config_module=CONFIG_PATH.split("://", 1)[1],
                                   version_base="1.3"):
@@ -115,7 +115,7 @@ def _sweep(cfg0, swept, parser, root, watch, overridden):
     from omegaconf import OmegaConf
 
     from . import spec as S
-    from .app import _base_params
+    from ._config import _base_params
     from .params import normalize, run_id
     from .preflight import preflight
 
