@@ -93,6 +93,19 @@ def _scene(surface, size, lights):
     return surf, lay, ps.render(surf, lay, model="ts", shadows=True)
 
 
+def _object_mask(surf):
+    """The object region; older trees (before the object_mask name) call it ``mask``."""
+    om = getattr(surf, "object_mask", None)
+    return surf.mask if om is None else om
+
+
+def _ne(res, surf, om):
+    try:
+        return ps.normal_error(res.normals, surf.normals, object_mask=om)
+    except TypeError:                      # an older tree: positional region
+        return ps.normal_error(res.normals, surf.normals, om)
+
+
 def bench(size=512, runs=5, surface="sombrero"):
     scenes = {}
     rows = []
@@ -101,17 +114,18 @@ def bench(size=512, runs=5, surface="sombrero"):
         if lights not in scenes:
             scenes[lights] = _scene(surface, size, lights)
         surf, lay, sc = scenes[lights]
-        solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)  # warm-up (imports, caches)
+        om = _object_mask(surf)
+        solve(sc.images, lay, mask=mask, object_mask=om)  # warm-up (imports, caches)
         ts, cpu = [], []
         for _ in range(runs):
             c0 = time.process_time()
-            res = solve(sc.images, lay, mask=mask, object_mask=surf.object_mask)
+            res = solve(sc.images, lay, mask=mask, object_mask=om)
             cpu.append(time.process_time() - c0)
             ts.append(res.timings["total"])
         med = float(np.median(ts))
         if mask == "None":
             base[lights] = med
-        ne = ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask)
+        ne = _ne(res, surf, om)
         rows.append((mask, lights, med, med / base[lights], target, matlab, ne, res.iterations,
                      float(np.min(ts)), float(np.median(cpu))))
     print(f"\npsbench.solve at {size}x{size}, surface {surface}, TS with shadows, "
