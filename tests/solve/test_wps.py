@@ -242,3 +242,14 @@ def test_weights_per_observation_ring_weights_per_ring(ts_scene):
     assert w.ring_weights.shape == (2,) + I.shape[1:]
     assert set(w.thresholds) == {"ring0", "ring1"} and w.converged is True
     assert "rings=2" in repr(w)
+
+
+@pytest.mark.parametrize("R", [2, 3, 5])
+def test_binary_weights_are_the_first_maximum(R):
+    from psbench.solve.methods.wps import _one_hot_max
+
+    u = np.random.default_rng(R).random((R, 500)).astype(np.float32)
+    u[:, :20] = 0.5                                   # ties: the earlier ring, as argmax
+    ref = np.zeros_like(u)
+    ref[np.argmax(u, axis=0), np.arange(500)] = 1.0
+    np.testing.assert_array_equal(_one_hot_max(u), ref)
