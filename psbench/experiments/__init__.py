@@ -78,7 +78,11 @@ figures(agg) -> list of (str, matplotlib.figure.Figure)
     ``(file stem, figure)`` pairs; import :mod:`psbench.report.figures` (helpers
     ``new_figure``, ``line``, ``thesis``, ``finish``, ``figure_legend``) inside the
     function, so that running the grid never imports matplotlib. Label the axes with
-    units and the thesis's values as such (``thesis(ax, x, y)``).
+    units and the thesis's values as such (``thesis(ax, x, y)``). A module that draws
+    from the results rows too (e.g. the per-pixel maps of the ``ne_map`` extra) declares
+    ``figures(agg, rows=None)``: the report then passes the experiment's ok rows as
+    ``rows=`` (a DataFrame of the store's columns); it must still draw from ``agg``
+    alone when ``rows`` is None.
 GATED : bool
     Whether the CI gate runs it at ``scale=ci`` and checks its aggregate (default
     False; a gated experiment needs a baseline, ``python -m psbench.report.gate update

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -265,8 +266,80 @@ def verdicts(agg, rows=None):
 
 
 # ----------------------------------------------------------------------------- figures
-def figures(agg):
-    """Per light set, NE of every row per object (bars), published L2/ST14 marked."""
+#: light sets drawn as grids of per-pixel error maps (one figure per object and set)
+MAP_SETS = ("all", "30x8+60x8")
+MAP_COLS = 8             # panels per row of a map grid
+MAP_OUTSIDE = "#c8c8c8"  # colour of the pixels outside the object
+
+
+def error_maps(rows, lights="all") -> dict:
+    """``{object: [(row label, mean NE, (h, w) map)]}`` of the rows carrying an ``ne_map``
+    (light set ``lights``), sorted by mean NE; maps cropped to the object's box (shared by the
+    object's maps). Rows without a map (older stores) are left out."""
+    from psbench.harness.nemap import decode
+
+    if rows is None or len(rows) == 0 or "ne_map" not in rows:
+        return {}
+    d = rows[rows["ne_map"].map(lambda v: isinstance(v, str) and bool(v))]
+    got = {}
+    for r in d.to_dict("records"):
+        if light_set(r) != lights:
+            continue
+        got.setdefault(data_name(r.get("data")), {}).setdefault(label(r), []).append(
+            (pd.to_numeric(r.get("ne_mean"), errors="coerce"), r["ne_map"]))
+    out = {}
+    for obj, by_label in got.items():
+        items = []
+        for lab, runs in by_label.items():   # several seeds: mean NE, the first map
+            ne = float(np.nanmean([v for v, _ in runs])) if any(v == v for v, _ in runs) \
+                else float("nan")
+            items.append((lab, ne, decode(runs[0][1])))
+        shapes = {m.shape for _, _, m in items}
+        if len(shapes) == 1:                 # crop to the object's box, shared by all
+            inside = np.any([np.isfinite(m) for _, _, m in items], axis=0)
+            if inside.any():
+                ys, xs = np.nonzero(inside)
+                box = np.s_[max(ys.min() - 1, 0):ys.max() + 2, max(xs.min() - 1, 0):xs.max() + 2]
+                items = [(lab, ne, m[box]) for lab, ne, m in items]
+        out[obj] = sorted(items, key=lambda t: (not t[1] == t[1], t[1], t[0]))
+    return out
+
+
+def _map_grid(obj, s, items):
+    """One figure: the error maps of one object and light set, one colour bar."""
+    from matplotlib import colormaps
+
+    from psbench.io._pictures import NE_MAX
+    from psbench.report.figures import new_figure
+
+    n = len(items)
+    ncols = min(n, MAP_COLS)
+    nrows = -(-n // ncols)
+    h, w = max(m.shape for _, _, m in items)
+    pw = 1.7
+    fig, axes = new_figure(w=pw, h=pw * h / w + 0.35, ncols=ncols, nrows=nrows)
+    axes = np.atleast_2d(axes)
+    # outside the object: light grey, apart from magma's pale yellow (saturated errors)
+    cmap = colormaps["magma"].with_extremes(bad=MAP_OUTSIDE)
+    im = None
+    for ax, (lab, ne, m) in zip(axes.flat, items):
+        im = ax.imshow(m, cmap=cmap, vmin=0, vmax=NE_MAX, interpolation="nearest")
+        title = f"{lab}  {ne:.2f}°"
+        ax.set_title(title if len(title) <= 18 else f"{lab}\n{ne:.2f}°", fontsize=10)
+    for ax in axes.flat:
+        ax.set_axis_off()
+    cb = fig.colorbar(im, ax=axes, shrink=min(1.0, 0.35 + 0.15 * nrows), extend="max",
+                      pad=0.01)
+    cb.set_label("angular error (deg)")
+    fig.suptitle(f"{obj}, {s} lights: per-pixel angular error, sorted by mean NE "
+                 f"(grey: outside the object)")
+    return fig
+
+
+def figures(agg, rows=None):
+    """Per light set, NE of every row per object (bars), published L2/ST14 marked; with
+    ``rows`` carrying ``ne_map``, per object and light set of :data:`MAP_SETS` a grid of
+    the per-pixel error maps (magma, 0 to ``NE_MAX`` deg, one colour bar)."""
     from psbench.report.figures import figure_legend, finish, new_figure
 
     if agg is None or agg.empty:
@@ -294,4 +367,8 @@ def figures(agg):
                legend=False)
         figure_legend(fig)
         out.append((f"realdata_{s.replace('+', '_')}", fig))
+    for s in MAP_SETS:
+        for obj, items in sorted(error_maps(rows, s).items()):
+            stem = re.sub(r"[^A-Za-z0-9_.-]", "_", f"realdata_maps_{obj}_{s}")
+            out.append((stem, _map_grid(obj, s, items)))
     return out

@@ -7,7 +7,8 @@ normalized by :func:`normalize`; their normalized json hashes to the ``run_id``.
   16-bit ``.png`` height map) under ``lights`` -- or read the folder ``data``
   (DiLiGenT layout) -- then solve with ``mask``/``method``/``options``/... and score
   NE (when true normals exist), IE and QF (synthetic only). ``extras: [ne_by_zenith]``
-  adds the NE-vs-surface-zenith curve (json) to the row.
+  adds the NE-vs-surface-zenith curve (json) to the row, ``ne_map`` the per-pixel NE
+  map (small 16-bit PNG, :mod:`psbench.harness.nemap`).
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
 - ``analysis``: calls ``psbench.analysis.<analysis>`` with the run parameters its
   signature accepts plus ``args``; its output is stored as json in ``payload``.
@@ -233,7 +234,8 @@ def solve_run(p, images, lights, object_mask, *, rounds=None):
 
 
 def _solve_metrics(p, sc, keep=None):
-    from ..metrics import intensity_error, ne_by_zenith, normal_error_stats, quality_factor
+    from ..metrics import (intensity_error, ne_by_zenith, normal_error_map,
+                           normal_error_stats, quality_factor)
 
     t0 = time.perf_counter()
     res = solve_run(p, sc.images, sc.lights, sc.mask)
@@ -246,6 +248,9 @@ def _solve_metrics(p, sc, keep=None):
         row.update({f"ne_{k}": _f(v) for k, v in st.items()})
         if "ne_by_zenith" in p["extras"]:
             row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, object_mask=sc.mask))
+        if "ne_map" in p["extras"]:
+            from . import nemap
+            row["ne_map"] = nemap.encode(normal_error_map(res.normals, sc.normals), sc.mask)
     for norm in ("l1", "l2", "linf"):
         row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, object_mask=sc.mask))
     w = getattr(res, "ring_weights", None)

@@ -17,7 +17,9 @@ One row per run. Column groups:
   0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
   load-independent cost figure), ``peak_mem_mb`` the peak resident set of
   the process that ran the run (reset before each run where Linux allows it);
-- payloads: json strings (``ne_by_zenith``, ``payload`` of analysis runs);
+- payloads: json strings (``ne_by_zenith``, ``payload`` of analysis runs); ``ne_map``
+  the per-pixel NE map of the ``ne_map`` extra (base64 16-bit PNG,
+  :mod:`psbench.harness.nemap`);
 - status: ``status`` ("ok" / "failed"), ``error``, ``traceback`` (last frames);
 - provenance: ``schema_version``, ``psbench_version``, ``git_sha``, ``git_dirty``,
   ``libs`` (json), ``host``, ``utc``, ``config`` (json of the full run config).
@@ -65,7 +67,7 @@ _METRICS = [
 _FIELDS = (
     [("run_id", pa.string()), ("sweep", pa.string()), ("experiment", pa.string())]
     + _PARAMS + _METRICS
-    + [("ne_by_zenith", pa.string()), ("payload", pa.string()),
+    + [("ne_by_zenith", pa.string()), ("ne_map", pa.string()), ("payload", pa.string()),
        ("status", pa.string()), ("error", pa.string()), ("traceback", pa.string()),
        ("schema_version", pa.int32()), ("psbench_version", pa.string()),
        ("git_sha", pa.string()), ("git_dirty", pa.bool_()), ("libs", pa.string()),

@@ -44,7 +44,7 @@ __all__ = ["Param", "PARAMS", "SETTINGS", "SPEC", "KINDS", "EXTRAS", "LAUNCHERS"
 #: name of the generated defaults node in Hydra's ConfigStore
 HYDRA_NODE = "psbench_spec"
 KINDS = ("solve", "cond", "analysis", "noop")
-EXTRAS = ("ne_by_zenith",)
+EXTRAS = ("ne_by_zenith", "ne_map")
 LAUNCHERS = ("joblib", "submitit_local", "submitit_slurm", "submitit_debug")
 ALL_KINDS = KINDS
 _SAME = object()

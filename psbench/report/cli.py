@@ -62,7 +62,7 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
     verdicts = V.verdicts(name, agg, ok)
     thesis = [v for v in verdicts if v.thesis]     # the totals count thesis claims only
     size = T.scale_size(name, scale, results)
-    figs, errs = F.figures(name, agg)
+    figs, errs = F.figures(name, agg, rows=ok)
     messages.extend(errs)
     rel = []
     for stem, fig in figs:

@@ -1,6 +1,7 @@
 """Matplotlib (Agg) figures drawn from the aggregates: style, helpers and the dispatcher.
 
-An experiment module draws its own figures in ``figures(agg) -> [(stem, Figure)]`` (see
+An experiment module draws its own figures in ``figures(agg) -> [(stem, Figure)]``
+(``figures(agg, rows=None)`` when it also needs the results rows, e.g. stored maps; see
 :mod:`psbench.experiments`) with the helpers here; it imports this module inside that
 function, so running an experiment's grid never imports matplotlib. The house style
 (:data:`STYLE`) makes every figure at least :data:`MIN_WIDTH` inches x :data:`DPI` (1000
@@ -87,15 +88,28 @@ def figure_legend(fig, ax=None, ncol=None):
         fig.legend(h, lab, loc="outside upper center", ncol=ncol or min(len(h), 4))
 
 
-def figures(experiment, agg):
-    """``[(stem, Figure)]`` of one registered experiment, and a list of error messages."""
+def _takes_rows(fn) -> bool:
+    import inspect
+
+    try:
+        ps = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        return False
+    return "rows" in ps or any(q.kind == q.VAR_KEYWORD for q in ps.values())
+
+
+def figures(experiment, agg, rows=None):
+    """``[(stem, Figure)]`` of one registered experiment, and a list of error messages.
+
+    ``rows`` (the experiment's ok results rows) are passed as ``rows=`` to an experiment
+    whose ``figures`` accepts them; others get the aggregate alone."""
     from .tables import experiment_module
 
     fn = getattr(experiment_module(experiment), "figures", None)
     if fn is None or agg is None or agg.empty:
         return [], []
     try:
-        return list(fn(agg) or []), []
+        return list((fn(agg, rows=rows) if _takes_rows(fn) else fn(agg)) or []), []
     except Exception as exc:  # noqa: BLE001
         plt.close("all")
         return [], [f"{experiment}: figure failed: {type(exc).__name__}: {exc}"]

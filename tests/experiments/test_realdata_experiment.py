@@ -82,3 +82,58 @@ def test_aggregate_and_verdicts():
     assert v["robust beats the published ST14 on cat and bear (all lights)"].status == "SUPPORTED"
     assert v["robust is the most accurate robust solver on cat (all lights)"].status == "SUPPORTED"
     assert all(x.status == "INCONCLUSIVE" for x in R.verdicts(R.aggregate(pd.DataFrame())))
+
+
+def _with_maps(rows, skip=()):
+    """The rows with an ne_map each: a disc whose error is the row's mean NE."""
+    from psbench.harness import nemap
+
+    yy, xx = np.mgrid[:40, :30]
+    disc = (yy - 20) ** 2 + (xx - 15) ** 2 < 12 ** 2
+    rows = rows.copy()
+    rows["ne_map"] = [None if R.label(r) in skip else
+                      nemap.encode(np.full(disc.shape, r["ne_mean"], np.float32), disc)
+                      for r in rows.to_dict("records")]
+    return rows
+
+
+def test_error_maps_per_object_sorted_and_cropped():
+    maps = R.error_maps(_with_maps(_rows(), skip=("trim",)), "all")
+    assert set(maps) == {"cat", "bear"}
+    labs = [lab for lab, _, _ in maps["cat"]]
+    assert labs == ["tsfit", "robust", "Th", "None"]                # by NE; trim has no map
+    for lab, ne, m in maps["cat"]:
+        assert m.shape == (25, 25)                                  # the disc's box + 1 px
+        assert np.isnan(m[0, 0]) and np.nanmax(m) == pytest.approx(ne, abs=0.006)
+    assert R.error_maps(_rows(), "all") == {}                       # older rows: no maps
+    assert R.error_maps(None) == {}
+
+
+def test_figures_draw_a_map_grid_per_object_and_light_set():
+    import matplotlib.pyplot as plt
+
+    from psbench.report.figures import figures as dispatch
+
+    rows = _with_maps(_rows())
+    agg = R.aggregate(rows)
+    figs = dict(R.figures(agg, rows=rows))
+    stems = {"realdata_maps_cat_all", "realdata_maps_bear_all",
+             "realdata_maps_cat_30x8_60x8", "realdata_maps_bear_30x8_60x8"}
+    assert stems <= set(figs)
+    fig = figs["realdata_maps_cat_all"]
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    assert titles[0] == "tsfit  5.70°" and len(titles) == 5
+    bar = [ax for ax in fig.axes if ax.get_ylabel() == "angular error (deg)"]
+    assert len(bar) == 1 and bar[0].get_ylim() == (0.0, 20.0)
+    assert not stems & {s for s, _ in R.figures(agg)}               # no rows: bars only
+    assert not stems & {s for s, _ in R.figures(agg, rows=_rows())}
+    got, errs = dispatch("realdata", agg, rows=rows)                # the report passes rows
+    assert not errs and stems <= {s for s, _ in got}
+    plt.close("all")
+
+
+def test_report_passes_rows_only_to_figures_that_take_them():
+    from psbench.report.figures import _takes_rows
+
+    assert _takes_rows(R.figures) and _takes_rows(lambda agg, **kw: None)
+    assert not _takes_rows(lambda agg: None)
