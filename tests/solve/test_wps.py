@@ -253,3 +253,19 @@ def test_binary_weights_are_the_first_maximum(R):
     ref = np.zeros_like(u)
     ref[np.argmax(u, axis=0), np.arange(500)] = 1.0
     np.testing.assert_array_equal(_one_hot_max(u), ref)
+
+
+def test_weight_none_is_least_squares_over_every_image():
+    """2Z PS (weight None) without a mask is plain PS on all images, here computed from
+    the ring solutions without another pass over the images."""
+    import psbench as ps
+
+    surf = ps.make_surface("sombrero2", size=48)
+    lay = ps.layout("30x8+60x8")
+    sc = ps.render(surf, lay, model="ts", noise=0.05, seed=0)
+    w = ps.solve(sc.images, lay, method="wps", weight="None", object_mask=surf.object_mask)
+    p = ps.solve(sc.images, lay, object_mask=surf.object_mask)
+    m = surf.object_mask
+    np.testing.assert_allclose(w.normals[m], p.normals[m], atol=1e-5)
+    np.testing.assert_allclose(w.albedo[m], p.albedo[m], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(w.residual[m], p.residual[m], rtol=1e-3, atol=1e-4)

@@ -304,7 +304,12 @@ def wps(problem, options):
         bf = fuse(ring_b, w)  # (3, N)
         b = _transpose(bf, N)
     elif plain:
-        b = kernel.ls(images, S).reshape(N, 3)
+        # least squares over every image from the ring solutions, without another pass
+        # over the images: S^T I = sum_j G_j b_j with G_j = S_j^T S_j (full-rank rings)
+        G = [S[idx].T @ S[idx] for idx in rings]
+        A = np.linalg.inv(sum(G))
+        bf = sum((A @ G[j]).astype(np.float32) @ ring_b[j] for j in range(R))
+        b = _transpose(bf, N)
     else:  # "2Z PS" with the mask: one masked solve over every image
         r0 = problem.engine(images, lay)
         b = (r0.normals * r0.albedo[..., None]).reshape(N, 3)
@@ -313,7 +318,7 @@ def wps(problem, options):
     t = time.perf_counter()
     if plain:
         # Pythagoras per ring: |I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T G_j (b_j - b)
-        bo = bf if weight != "None" else b.T  # fused rho n, (3, N)
+        bo = bf  # fused rho n, (3, N)
         r2 = np.zeros(N, dtype=np.float32)
         for j, idx in enumerate(rings):
             r2 += _quad3(ring_b[j] - bo, S[idx].T @ S[idx])
