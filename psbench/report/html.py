@@ -242,7 +242,7 @@ def _html_table(df: pd.DataFrame, caption=None, cls=None) -> str:
 
 
 def _claim_md(v) -> str:
-    return v.claim + (f" (thesis: \"{v.quote}\")" if getattr(v, "quote", "") else "")
+    return v.claim + (f" (thesis, {v.quote})" if getattr(v, "quote", "") else "")
 
 
 def _verdict_frame(vs) -> pd.DataFrame:
@@ -329,16 +329,17 @@ def to_html(blocks, title) -> str:
 
 def _quote_html(v) -> str:
     q = getattr(v, "quote", "")
-    return f"<div class='quote'>thesis: &ldquo;{_html.escape(q)}&rdquo;</div>" if q else ""
+    return f"<div class='quote'>thesis, {_html.escape(q)}</div>" if q else ""
 
 
 def _verdicts_html(vs, cls="verdict") -> str:
+    head = "claim (thesis)" if cls == "verdict" else "question (psbench)"
     rows = "".join(
         f"<tr class='{cls}'><td class='{_STATUS_CLASS.get(v.status, '')}'>"
         f"{_html.escape(v.status)}</td><td>{inline_html(v.claim)}{_quote_html(v)}</td>"
         f"<td>{inline_html(v.detail)}</td></tr>" for v in vs)
     return ("<table class='verdicts'><thead><tr><th>status</th>"
-            "<th class='wide'>claim (thesis)</th><th>psbench's numbers</th></tr></thead>"
+            f"<th class='wide'>{head}</th><th>psbench's numbers</th></tr></thead>"
             f"<tbody>{rows}</tbody></table>")
 
 
