@@ -135,8 +135,11 @@ def split(b, *, eps=1e-6):
     albedo : (H, W) float32
     """
     rho = _norm3(b)
-    fin = np.isfinite(rho)
-    ref = float(np.mean(rho, where=fin)) if fin.any() else 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        ref = float(rho.mean()) if rho.size else 0.0   # one pass; NaN/inf propagate
+    if not np.isfinite(ref):                            # only then the masked mean
+        fin = np.isfinite(rho)
+        ref = float(np.mean(rho, where=fin, dtype=np.float64)) if fin.any() else 0.0
     cut = np.float32(eps * ref) if np.isfinite(ref) else np.float32(0.0)
     bad = rho <= cut
     inv = np.where(bad, np.float32(1.0), rho)
