@@ -25,12 +25,12 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 
+from .._provenance import git_state
 from . import figures as F
 from . import pages as G
 from . import scales as S
@@ -39,19 +39,6 @@ from . import verdicts as V
 from .html import save_figure, write_atomic, write_page
 
 __all__ = ["build", "build_all", "main"]
-
-
-def _git_sha():
-    try:
-        here = Path(__file__).resolve().parent
-        r = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
-                           text=True, timeout=10)
-        sha = r.stdout.strip() or None
-        d = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
-                            "--untracked-files=no"], capture_output=True, text=True, timeout=20)
-        return sha, bool(d.stdout.strip())
-    except Exception:  # noqa: BLE001
-        return None, None
 
 
 def _build_experiment(name, rows_all, out, scale, messages, results):
@@ -159,7 +146,7 @@ def _other_link(out, scale) -> str:
 def _provenance(df, summaries, results, now) -> str:
     import psbench
 
-    sha, dirty = _git_sha()
+    sha, dirty = git_state()
     text = (f"Generated {now} from the results store `{G.display_path(results)}` by "
             f"psbench-report (no solving); psbench {psbench.__version__}, git "
             f"{(sha or 'unknown')[:10]}{' (uncommitted changes)' if dirty else ''}.")
