@@ -1,8 +1,8 @@
 """Where the valid values of run parameters come from, read when needed.
 
-Plug-in names (masks, methods, surfaces, experiments) come from :mod:`psbench.registry`;
-while a group is empty (a source tree whose built-ins are not registered yet), the
-names the code base still lists are used, without help text. Each source returns
+Plug-in names (masks, methods, surfaces, experiments) come from :mod:`psbench.registry`
+(built-ins are always found there); fixed vocabularies (render models, WPS weights, Th
+scopes) from the module that defines them, imported on first use. Each source returns
 ``{name: one-line help}``; the ``check_*`` functions validate one normalized value.
 """
 from __future__ import annotations
@@ -19,7 +19,8 @@ __all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights
 
 
 def _legacy(ref):
-    """``module:attribute`` of the code base, or None when it no longer exists."""
+    """``module:attribute``, imported when first needed (keeps ``--help`` light); None
+    when it no longer exists (``--help`` then says none are listed)."""
     mod, attr = ref.split(":")
     try:
         return getattr(importlib.import_module(mod), attr)
@@ -27,35 +28,28 @@ def _legacy(ref):
         return None
 
 
-def _registry(group, legacy=None) -> dict:
-    """``{name: help}`` of a registry group; while the group is empty (built-ins not
-    registered), the names of the ``legacy`` tuple without help."""
+def _registry(group) -> dict:
+    """``{name: help}`` of a registry group."""
     from .. import registry
 
     specs = getattr(registry, group)()
-    if specs:
-        out = {}
-        for name in sorted(specs, key=str.lower):
-            s = specs[name]
-            out[name] = getattr(s, "help", "") or (getattr(s, "TITLE", "") if group ==
-                                                   "experiments" else "")
-        return out
-    names = _legacy(legacy) if legacy else None
-    return {str(n): "" for n in (names or ())}
+    return {name: getattr(specs[name], "help", "") or (
+        getattr(specs[name], "TITLE", "") if group == "experiments" else "")
+        for name in sorted(specs, key=str.lower)}
 
 
 def masks() -> dict:
     """Mask names (``None``, plain least squares, is always valid and not listed)."""
-    return {n: h for n, h in _registry("masks", "psbench.solve.api:MASKS").items()
+    return {n: h for n, h in _registry("masks").items()
             if n.lower() != "none"}
 
 
 def methods() -> dict:
-    return _registry("methods", "psbench.solve.api:METHODS")
+    return _registry("methods")
 
 
 def surfaces() -> dict:
-    return _registry("surfaces", "psbench.surfaces:SURFACES")
+    return _registry("surfaces")
 
 
 def experiments() -> dict:
@@ -89,18 +83,10 @@ def choice_sources() -> dict:
 
 
 def options_class(method):
-    """The options dataclass of ``method`` (registry); the mask engine's
-    :class:`psbench.solve.base.Options` while no method is registered."""
+    """The options dataclass of ``method`` (an unknown name lists the valid ones)."""
     from .. import registry
 
-    if registry.methods():
-        return registry.get("methods", method).options
-    from ..solve.base import Options
-
-    legacy = _legacy("psbench.solve.api:METHODS")
-    if legacy and method not in legacy:
-        raise PsbenchError(f"method={method!r} is not known; valid choices: {', '.join(legacy)}")
-    return Options
+    return registry.get("methods", method).options
 
 
 def check_surface(value, params):
@@ -128,11 +114,6 @@ def check_lights(value, params):
 def check_mask(value, params):
     from .. import registry
 
-    if not registry.masks():                 # built-ins not registered: today's parser
-        parse = _legacy("psbench.solve.api:parse_mask")
-        if parse is not None:
-            parse(value)
-            return
     valid = masks()
     low = {n.lower(): n for n in valid}
     tokens = [t for t in value.replace("-", " ").replace("+", " ").split() if t.lower() != "none"]
