@@ -373,22 +373,26 @@ def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict
 
 
 class pinned_threads:
-    """Run with one BLAS / OpenMP thread: a run's numbers must not depend on how it was
+    """Run with one BLAS / OpenMP / numba thread: a run's numbers must not depend on how it was
     launched (a single ``psbench`` call, a ``-m`` worker, a shard job), and the thread
     count changes the summation order of multi-threaded BLAS kernels."""
 
     def __enter__(self):
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # pragma: no cover - a declared dependency
-            self._lim = None
-            return self
+        from threadpoolctl import threadpool_limits
+
         self._lim = threadpool_limits(limits=1)
+        # numba's parallel kernels have their own pool (thread-local setting)
+        import numba
+
+        self._numba = numba.get_num_threads()
+        numba.set_num_threads(1)
         return self
 
     def __exit__(self, *exc):
-        if self._lim is not None:
-            self._lim.restore_original_limits()
+        import numba
+
+        numba.set_num_threads(self._numba)
+        self._lim.restore_original_limits()
         return False
 
 
