@@ -27,7 +27,7 @@ AVERAGES = ("Mean angular error (deg) over each object's mask against its ground
             "whole solve on this machine. 'mean' averages the objects.")
 NOTES = ("The 'thesis' column holds the published DiLiGenT values of cat and bear "
          "(Shi et al., TPAMI 2019: L2 = least squares over all 96 images, ST14 = Shi et al. "
-         "2014), not values of the thesis; psbench's row 'ps' (None, least squares) must "
+         "2014), not values of the thesis; psbench's row 'None' (least squares) must "
          "reproduce L2. Light sets: all lights; '30x8+60x8' = for each of the 16 "
          "directions of the two rings the nearest unused light of the folder, most certain "
          "matches first (DiLiGenT's lights stop at ~43 deg zenith, so its '60 deg' ring is "
@@ -43,7 +43,7 @@ GATED = False
 #: published DiLiGenT mean angular errors (deg), all 96 lights
 PUBLISHED = {"L2": {"cat": 8.41, "bear": 8.39}, "ST14": {"cat": 6.12, "bear": 6.12}}
 LIGHT_SETS = ("all", "30x8+60x8", "45x4")
-THESIS = {"NE all": {"ps": dict(PUBLISHED["L2"]),
+THESIS = {"NE all": {"None": dict(PUBLISHED["L2"]),
                      "ST14 (published)": dict(PUBLISHED["ST14"])}}
 #: robust solvers of the literature (mask None)
 LITERATURE = ("trim", "huber", "cauchy", "tukey", "l1", "sbl", "rpca")

@@ -62,6 +62,12 @@ def test_labels(r, want):
     assert R.label(r) == want
 
 
+def test_published_l2_sits_on_the_least_squares_row():
+    # the published L2 value is shown beside psbench's own least-squares row
+    assert R.label({"method": "ps", "mask": "None"}) in R.THESIS["NE all"]
+    assert R.THESIS["NE all"][R.label({"method": "ps", "mask": "None"})] == R.PUBLISHED["L2"]
+
+
 def _rows():
     recs = []
     for obj, ne in (("cat", {"ps": 8.4, "robust": 5.9, "tsfit": 5.7, "trim": 6.5, "Th": 7.5}),
