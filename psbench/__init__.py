@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib
 
+from . import _numba_setup  # noqa: F401  (first: numba's fork-safe threading layer)
 from . import surfaces
 from ._checks import PsbenchError
 from .integrate import integrate
