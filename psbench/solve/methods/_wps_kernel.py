@@ -72,36 +72,61 @@ def _sig(x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _solve_block(I2, lo, n, ring, P, S, count, B, E2):
-    """b_j = P_j I_j of every ring and its mean squared residual e_j^2 (B (R, 3, BLOCK),
-    E2 (R, BLOCK)) for the block's n pixels from ``lo``."""
-    k = I2.shape[0]
+def _solve_block(I2, lo, n, order, start, P, G, B, E2):
+    """b_j = P_j I_j of every ring (B (R, 3, BLOCK)) and its mean squared residual e_j^2
+    (E2 (R, BLOCK)) for the block's n pixels from ``lo``.
+
+    The residual comes from the same pass, ``|I_j - S_j b_j|^2 = |I_j|^2 - b_j^T G_j
+    b_j`` (S_j^T I_j = G_j b_j): in float64 its cancellation costs ~1e-16 |I_j|^2,
+    below the float32 resolution of the images themselves. Lights are taken four at a
+    time so that the accumulators are loaded and stored once per four images.
+    """
     R = B.shape[0]
-    B[:, :, :n] = 0.0
-    E2[:, :n] = 0.0
-    for i in range(k):
-        j = ring[i]
-        p0, p1, p2 = P[i, 0], P[i, 1], P[i, 2]
-        x, bx, by, bz = I2[i, lo:lo + n], B[j, 0], B[j, 1], B[j, 2]
-        for q in range(n):
-            v = np.float64(x[q])
-            bx[q] += p0 * v
-            by[q] += p1 * v
-            bz[q] += p2 * v
-    for i in range(k):
-        j = ring[i]
-        if count[j] == 3:   # exactly determined: no residual
-            continue
-        s0, s1, s2 = S[i, 0], S[i, 1], S[i, 2]
-        x, bx, by, bz, e2 = I2[i, lo:lo + n], B[j, 0], B[j, 1], B[j, 2], E2[j]
-        for q in range(n):
-            r = np.float64(x[q]) - (s0 * bx[q] + s1 * by[q] + s2 * bz[q])
-            e2[q] += r * r
     for j in range(R):
-        inv = 1.0 / count[j]
-        e2 = E2[j]
+        bx, by, bz, ss = B[j, 0], B[j, 1], B[j, 2], E2[j]
+        bx[:n] = 0.0
+        by[:n] = 0.0
+        bz[:n] = 0.0
+        ss[:n] = 0.0
+        m = start[j]
+        while m + 4 <= start[j + 1]:
+            ia, ib, ic, id = order[m], order[m + 1], order[m + 2], order[m + 3]
+            xa, xb, xc, xd = I2[ia, lo:lo + n], I2[ib, lo:lo + n], I2[ic, lo:lo + n], I2[id, lo:lo + n]
+            a0, a1, a2 = P[ia, 0], P[ia, 1], P[ia, 2]
+            b0, b1, b2 = P[ib, 0], P[ib, 1], P[ib, 2]
+            c0, c1, c2 = P[ic, 0], P[ic, 1], P[ic, 2]
+            d0, d1, d2 = P[id, 0], P[id, 1], P[id, 2]
+            for q in range(n):
+                va, vb = np.float64(xa[q]), np.float64(xb[q])
+                vc, vd = np.float64(xc[q]), np.float64(xd[q])
+                bx[q] += a0 * va + b0 * vb + c0 * vc + d0 * vd
+                by[q] += a1 * va + b1 * vb + c1 * vc + d1 * vd
+                bz[q] += a2 * va + b2 * vb + c2 * vc + d2 * vd
+                ss[q] += va * va + vb * vb + vc * vc + vd * vd
+            m += 4
+        while m < start[j + 1]:
+            ia = order[m]
+            xa = I2[ia, lo:lo + n]
+            a0, a1, a2 = P[ia, 0], P[ia, 1], P[ia, 2]
+            for q in range(n):
+                va = np.float64(xa[q])
+                bx[q] += a0 * va
+                by[q] += a1 * va
+                bz[q] += a2 * va
+                ss[q] += va * va
+            m += 1
+        cnt = start[j + 1] - start[j]
+        if cnt == 3:        # exactly determined: no residual
+            ss[:n] = 0.0
+            continue
+        g = G[j]
+        g00, g01, g02, g11, g12, g22 = g[0, 0], g[0, 1], g[0, 2], g[1, 1], g[1, 2], g[2, 2]
+        inv = 1.0 / cnt
         for q in range(n):
-            e2[q] *= inv
+            x, y, z = bx[q], by[q], bz[q]
+            fit = (x * (g00 * x + 2.0 * (g01 * y + g02 * z))
+                   + y * (g11 * y + 2.0 * g12 * z) + g22 * z * z)
+            ss[q] = max(ss[q] - fit, 0.0) * inv
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -375,7 +400,7 @@ def _store(B, E2, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e)
 
 
 @njit(cache=True, parallel=True, nogil=True, error_model="numpy")
-def plain_rings(I2, ring, P, S, F, G, count, kind, share, src, surf, sinz, rank, inv_zscale,
+def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, rank, inv_zscale,
                 binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo, ring_e):
     """Every ring's least squares, residual and weight, and the fusion, in one pass over
     the images (no mask).
@@ -383,11 +408,10 @@ def plain_rings(I2, ring, P, S, F, G, count, kind, share, src, surf, sinz, rank,
     Parameters
     ----------
     I2 : (k, N) float32, C-contiguous
-    ring : (k,) int64
-        Ring of each light.
+    order, start : (k,) and (R + 1,) int64
+        Ring j's lights are ``order[start[j]:start[j + 1]]``.
     P : (k, 3) float64
         Row i of the pseudo-inverse of light i's ring: b_j = sum_{i in j} P_i I_i.
-    S : (k, 3) float64
     F : (R, 3, 3) float64
         Least squares over every light from the ring solutions (weight "None").
     G : (R, 3, 3) float64
@@ -414,7 +438,7 @@ def plain_rings(I2, ring, P, S, F, G, count, kind, share, src, surf, sinz, rank,
         U = np.empty((R, BLOCK))
         Fb = np.empty((3, BLOCK))
         s = np.empty(BLOCK)
-        _solve_block(I2, lo, n, ring, P, S, count, B, E2)
+        _solve_block(I2, lo, n, order, start, P, G, B, E2)
         _weigh_block(B, E2, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale,
                      binary, T, pairs, tris)
         _fuse_block(B, U, n, kind, F, Fb)

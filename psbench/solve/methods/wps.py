@@ -186,21 +186,21 @@ def _plain(I2, S, rings, args):
     (:func:`psbench.solve.methods._wps_kernel.plain_rings`)."""
     k, N = I2.shape
     R = len(rings)
-    ring = np.empty(k, dtype=np.int64)
+    order = np.concatenate(rings).astype(np.int64)
+    start = np.cumsum([0] + [idx.size for idx in rings]).astype(np.int64)
     P = np.empty((k, 3))
     G = np.empty((R, 3, 3))
     for j, idx in enumerate(rings):
-        ring[idx] = j
         P[idx] = np.linalg.pinv(S[idx]).T
         G[j] = S[idx].T @ S[idx]
     # weight "None": least squares over every image from the ring solutions,
     # S^T I = sum_j G_j b_j (full-rank rings), so b = sum_j (A G_j) b_j, A = (S^T S)^-1
     A = np.linalg.inv(G.sum(0))
     F = np.einsum("ab,jbc->jac", A, G)
-    count = np.array([idx.size for idx in rings], dtype=np.int64)
+    count = np.diff(start)
     b, w, ring_normals, ring_albedo, ring_e = _outputs(R, N)
     resid = np.empty(N, dtype=np.float32)
-    _k.plain_rings(np.ascontiguousarray(I2), ring, P, S, F, G, count, *args, b, resid, w,
+    _k.plain_rings(np.ascontiguousarray(I2), order, start, P, F, G, count, *args, b, resid, w,
                    ring_normals, ring_albedo, ring_e)
     return b, resid, w, ring_normals, ring_albedo, ring_e
 
