@@ -165,7 +165,8 @@ def _ring_setup(lay, rings, options, truth, N):
     kind = {"None": _k.KIND_NONE, "oracle": _k.KIND_ORACLE}.get(weight, _k.KIND_E)
     share = np.array([np.float32(idx.size / lay.S.shape[0]) for idx in rings])
     sinz = np.array([np.float32(np.sin(np.radians(z))) for z in zen], dtype=np.float64)
-    T = (np.ascontiguousarray(truth.reshape(N, 3), dtype=np.float32) if kind == _k.KIND_ORACLE
+    # writable C float32 either way: numba compiles read-only arrays separately
+    T = (np.require(truth.reshape(N, 3), np.float32, ["C", "W"]) if kind == _k.KIND_ORACLE
          else np.zeros((1, 3), dtype=np.float32))
     pairs = np.array(list(itertools.combinations(range(R), 2)), dtype=np.int64).reshape(-1, 2)
     tris = np.array(list(itertools.combinations(range(R), 3)), dtype=np.int64).reshape(-1, 3)
