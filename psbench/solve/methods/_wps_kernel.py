@@ -28,24 +28,27 @@ BLOCK = 256
 KIND_NONE, KIND_E, KIND_ORACLE = 0, 1, 2
 
 _DEG = 180.0 / math.pi
-# asin(s) = s + s z Q(z), z = s^2 <= 1/4: Taylor coefficients of Q (error < 3e-13)
+# asin(s) = s + s z Q(z), z = s^2 <= 1/4: Taylor coefficients of Q (12 terms: error < 1e-10)
 _Q = tuple(factorial(2 * m + 2) / (4 ** (m + 1) * factorial(m + 1) ** 2 * (2 * m + 3))
-           for m in range(16))
-# exp(r) for |r| <= 100 / 128 (error < 1e-10 after the 7 squarings)
-_E = tuple(1.0 / factorial(m) for m in range(14))
+           for m in range(12))
+# exp(r) for |r| <= 100 / 256 (11 terms: error < 1e-9 after the 8 squarings)
+_E = tuple(1.0 / factorial(m) for m in range(11))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _acos(x):
-    """arccos on [-1, 1] without a library call (vectorisable)."""
+    """arccos on [-1, 1] without a library call (vectorisable; polynomials in Estrin's
+    form for short dependency chains)."""
     a = abs(x)
     big = a > 0.5
     z = 0.5 * (1.0 - a) if big else a * a
     s = math.sqrt(z) if big else a
-    p = (((((((_Q[15] * z + _Q[14]) * z + _Q[13]) * z + _Q[12]) * z + _Q[11]) * z + _Q[10])
-          * z + _Q[9]) * z + _Q[8])
-    p = (((((((p * z + _Q[7]) * z + _Q[6]) * z + _Q[5]) * z + _Q[4]) * z + _Q[3]) * z + _Q[2])
-         * z + _Q[1]) * z + _Q[0]
+    z2 = z * z
+    z4 = z2 * z2
+    p0 = (_Q[0] + _Q[1] * z) + (_Q[2] + _Q[3] * z) * z2
+    p1 = (_Q[4] + _Q[5] * z) + (_Q[6] + _Q[7] * z) * z2
+    p2 = (_Q[8] + _Q[9] * z) + (_Q[10] + _Q[11] * z) * z2
+    p = p0 + (p1 + p2 * z4) * z4
     asn = s + s * z * p
     r = 2.0 * asn if big else 0.5 * math.pi - asn
     return r if x >= 0.0 else math.pi - r
@@ -56,11 +59,14 @@ def _sig(x):
     """Eq. 4.15's sigmoid 1 / (1 + exp(-10 (x - 0.5))); 0 where exp overflows float32, as
     the float32 formula gives."""
     y = -10.0 * (x - 0.5)
-    r = min(max(y, -100.0), 100.0) * 0.0078125     # exp(y) = exp(y / 128)^128
-    p = ((((((_E[13] * r + _E[12]) * r + _E[11]) * r + _E[10]) * r + _E[9]) * r + _E[8])
-         * r + _E[7])
-    p = ((((((p * r + _E[6]) * r + _E[5]) * r + _E[4]) * r + _E[3]) * r + _E[2]) * r
-         + _E[1]) * r + _E[0]
+    r = min(max(y, -100.0), 100.0) * 0.00390625     # exp(y) = exp(y / 256)^256
+    r2 = r * r
+    r4 = r2 * r2
+    p0 = (_E[0] + _E[1] * r) + (_E[2] + _E[3] * r) * r2
+    p1 = (_E[4] + _E[5] * r) + (_E[6] + _E[7] * r) * r2
+    p2 = (_E[8] + _E[9] * r) + _E[10] * r2
+    p = p0 + (p1 + p2 * r4) * r4
+    p = p * p
     p = p * p
     p = p * p
     p = p * p
@@ -130,11 +136,11 @@ def _solve_block(I2, lo, n, order, start, P, G, B, E2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _e_weights(B, E2, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
+def _e_weights(B, E2, INV, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
     """Eqs. 4.13-4.16: u_j = factors_j / e_j^2, normalised (or one-hot), into U."""
     R = B.shape[0]
     for j in range(R):
-        bx, by, bz, e2, u = B[j, 0], B[j, 1], B[j, 2], E2[j], U[j]
+        bz, e2, inv, u = B[j, 2], E2[j], INV[j], U[j]
         f = sinz[j] if src else 1.0
         for q in range(n):
             u[q] = f / (e2[q] + 1e-30)
@@ -142,8 +148,7 @@ def _e_weights(B, E2, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
             # surface zenith of the ring's own normal, sigmoid of the mirrored argument
             t = rank[j]
             for q in range(n):
-                rho = math.sqrt(bx[q] * bx[q] + by[q] * by[q] + bz[q] * bz[q])
-                nz = min(max(bz[q] / max(rho, 1e-30), -1.0), 1.0)
+                nz = min(max(bz[q] * inv[q], -1.0), 1.0)
                 z = _acos(nz) * (_DEG * inv_zscale)
                 u[q] *= _sig((1.0 - t) * z + t * (1.0 - z))
     if binary:
@@ -180,14 +185,13 @@ def _one_hot(U, n):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _oracle(B, T, lo, U, n, pairs, tris, binary):
+def _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary):
     """Oracle weights (module docs of ``wps``): per pixel the direction of the cone of
     the ring normals closest to the truth, as weights of the b_j. Candidates (best
     single normal, best point of each arc, the truth inside a cone of three) are
     evaluated for the whole block at once and kept where they are better."""
     R = B.shape[0]
     NN = np.empty((R, 3, BLOCK))
-    RHO = np.empty((R, BLOCK))
     CS = np.empty((R, BLOCK))
     C = U                       # direction coefficients, turned into weights at the end
     tr = np.empty((3, BLOCK))
@@ -205,14 +209,12 @@ def _oracle(B, T, lo, U, n, pairs, tris, binary):
         ty[q] = r1 / rn
         tz[q] = r2 / rn
     for j in range(R):
-        bx, by, bz, rho, cs = B[j, 0], B[j, 1], B[j, 2], RHO[j], CS[j]
+        bx, by, bz, inv, cs = B[j, 0], B[j, 1], B[j, 2], INV[j], CS[j]
         nx, ny, nz = NN[j, 0], NN[j, 1], NN[j, 2]
         for q in range(n):
-            rho[q] = math.sqrt(bx[q] * bx[q] + by[q] * by[q] + bz[q] * bz[q])
-            d = max(rho[q], 1e-30)
-            nx[q] = bx[q] / d
-            ny[q] = by[q] / d
-            nz[q] = bz[q] / d
+            nx[q] = bx[q] * inv[q]
+            ny[q] = by[q] * inv[q]
+            nz[q] = bz[q] * inv[q]
             cs[q] = nx[q] * tx[q] + ny[q] * ty[q] + nz[q] * tz[q]
     # best single ring normal (the first on ties)
     pick = c1
@@ -302,9 +304,9 @@ def _oracle(B, T, lo, U, n, pairs, tris, binary):
     s = bc
     s[:n] = 0.0
     for j in range(R):
-        cj, rho = C[j], RHO[j]
+        cj, inv = C[j], INV[j]
         for q in range(n):
-            cj[q] = cj[q] / max(rho[q], 1e-30)
+            cj[q] = cj[q] * inv[q]
             s[q] += cj[q]
     for j in range(R):
         cj = C[j]
@@ -313,15 +315,25 @@ def _oracle(B, T, lo, U, n, pairs, tris, binary):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _weigh_block(B, E2, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale, binary,
+def _norms(B, n, RHO, INV):
+    """rho_j = |b_j| and 1 / max(rho_j, 1e-30) for the block (weights, oracle, outputs)."""
+    for j in range(B.shape[0]):
+        bx, by, bz, rho, inv = B[j, 0], B[j, 1], B[j, 2], RHO[j], INV[j]
+        for q in range(n):
+            rho[q] = math.sqrt(bx[q] * bx[q] + by[q] * by[q] + bz[q] * bz[q])
+            inv[q] = 1.0 / max(rho[q], 1e-30)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale, binary,
                  T, pairs, tris):
     if kind == KIND_NONE:
         for j in range(B.shape[0]):
             U[j, :n] = share[j]
     elif kind == KIND_ORACLE:
-        _oracle(B, T, lo, U, n, pairs, tris, binary)
+        _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary)
     else:
-        _e_weights(B, E2, U, s, n, src, surf, sinz, rank, inv_zscale, binary)
+        _e_weights(B, E2, INV, U, s, n, src, surf, sinz, rank, inv_zscale, binary)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -372,7 +384,7 @@ def _residual_block(B, E2, Fb, n, G, count, lo, resid):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _store(B, E2, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e):
+def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e):
     """The block's outputs: b (N, 3), w (R, N), ring normals (0, 0, 1 where rho_j <=
     1e-6), albedo and RMS residual. Interleaved arrays are written through flat views
     (2-d indexing of a slice would not vectorise)."""
@@ -384,24 +396,23 @@ def _store(B, E2, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e)
             bo[3 * q + 1] = fy[q]
             bo[3 * q + 2] = fz[q]
     for j in range(B.shape[0]):
-        bx, by, bz, e2, u = B[j, 0], B[j, 1], B[j, 2], E2[j], U[j]
+        bx, by, bz, e2, u, rho, inv = B[j, 0], B[j, 1], B[j, 2], E2[j], U[j], RHO[j], INV[j]
         wo, alb, e = w[j, lo:lo + n], ring_albedo[j, lo:lo + n], ring_e[j, lo:lo + n]
         nrm = ring_normals[j].reshape(-1)[3 * lo:3 * (lo + n)]
         for q in range(n):
             wo[q] = u[q]
-            rho = math.sqrt(bx[q] * bx[q] + by[q] * by[q] + bz[q] * bz[q])
-            alb[q] = rho
+            alb[q] = rho[q]
             e[q] = math.sqrt(e2[q])
-            zero = rho <= 1e-6
-            inv = 0.0 if zero else 1.0 / rho
-            nrm[3 * q] = bx[q] * inv
-            nrm[3 * q + 1] = by[q] * inv
-            nrm[3 * q + 2] = 1.0 if zero else bz[q] * inv
+            zero = rho[q] <= 1e-6
+            f = 0.0 if zero else inv[q]
+            nrm[3 * q] = bx[q] * f
+            nrm[3 * q + 1] = by[q] * f
+            nrm[3 * q + 2] = 1.0 if zero else bz[q] * f
 
 
-@njit(cache=True, parallel=True, nogil=True, error_model="numpy")
-def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, rank, inv_zscale,
-                binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo, ring_e):
+def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, rank,
+                inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
+                ring_e):
     """Every ring's least squares, residual and weight, and the fusion, in one pass over
     the images (no mask).
 
@@ -417,7 +428,7 @@ def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, 
     G : (R, 3, 3) float64
         S_j^T S_j.
     count : (R,) int64
-        Lights per ring (3: exactly determined, residual 0).
+        Lights per ring.
     kind, share, src, surf, sinz, rank, inv_zscale, binary, T, pairs, tris
         The weight (``wps._ring_setup``): kind, n_j / k (R,), sin Z_source factor?,
         surface factor?, sin Z_source_j (R,), zenith rank_j (R,), 1 / z_scale,
@@ -427,26 +438,12 @@ def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, 
         (N, 3) fused rho n, (N,) its residual norm over every image, (R, N) weights,
         (R, N, 3), (R, N), (R, N) RMS residual e_j.
     """
-    N = I2.shape[1]
     R = count.shape[0]
-    nblocks = (N + BLOCK - 1) // BLOCK
-    for blk in prange(nblocks):
-        lo = blk * BLOCK
-        n = min(BLOCK, N - lo)
-        B = np.empty((R, 3, BLOCK))
-        E2 = np.empty((R, BLOCK))
-        U = np.empty((R, BLOCK))
-        Fb = np.empty((3, BLOCK))
-        s = np.empty(BLOCK)
-        _solve_block(I2, lo, n, order, start, P, G, B, E2)
-        _weigh_block(B, E2, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale,
-                     binary, T, pairs, tris)
-        _fuse_block(B, U, n, kind, F, Fb)
-        _residual_block(B, E2, Fb, n, G, count, lo, resid)
-        _store(B, E2, U, Fb, lo, n, True, b, w, ring_normals, ring_albedo, ring_e)
+    _pass(True, I2, order, start, P, F, G, count, np.empty((R, 3, 0), np.float32),
+          np.empty((R, 0), np.float32), kind, share, src, surf, sinz, rank, inv_zscale, binary,
+          T, pairs, tris, b, resid, w, ring_normals, ring_albedo, ring_e)
 
 
-@njit(cache=True, parallel=True, nogil=True, error_model="numpy")
 def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, binary, T, pairs,
                 tris, b, w, ring_normals, ring_albedo, ring_e):
     """Weights and fusion from given ring solutions (the masked path).
@@ -455,9 +452,24 @@ def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, bina
     residuals of each ring's solve; the other arguments as :func:`plain_rings` (``b``
     is not written for weight "None", whose b is a solve over every image).
     """
-    R, _, N = ring_b.shape
+    R = ring_b.shape[0]
+    i0 = np.empty(0, np.int64)
+    f0 = np.zeros((R, 3, 3))
+    _pass(False, np.empty((0, 0), np.float32), i0, i0, np.empty((0, 3)), f0, f0, i0,
+          np.ascontiguousarray(ring_b, np.float32), np.ascontiguousarray(e2, np.float32), kind,
+          share, src, surf, sinz, rank, inv_zscale, binary, T, pairs, tris, b,
+          np.empty(0, np.float32), w, ring_normals, ring_albedo, ring_e)
+
+
+@njit(cache=True, parallel=True, nogil=True, error_model="numpy")
+def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src, surf, sinz,
+          rank, inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
+          ring_e):
+    """The one compiled kernel (one compilation for both paths): ring solutions from the
+    images (``plain``) or from ``ring_b`` / ``e2``, then weights, fusion, outputs."""
+    R = F.shape[0]
+    N = I2.shape[1] if plain else ring_b.shape[2]
     nblocks = (N + BLOCK - 1) // BLOCK
-    F = np.zeros((R, 3, 3))
     for blk in prange(nblocks):
         lo = blk * BLOCK
         n = min(BLOCK, N - lo)
@@ -466,12 +478,21 @@ def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, bina
         U = np.empty((R, BLOCK))
         Fb = np.empty((3, BLOCK))
         s = np.empty(BLOCK)
-        for j in range(R):
-            for c in range(3):
-                B[j, c, :n] = ring_b[j, c, lo:lo + n]
-            E2[j, :n] = e2[j, lo:lo + n]
-        _weigh_block(B, E2, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale,
-                     binary, T, pairs, tris)
-        if kind != KIND_NONE:
+        RHO = np.empty((R, BLOCK))
+        INV = np.empty((R, BLOCK))
+        if plain:
+            _solve_block(I2, lo, n, order, start, P, G, B, E2)
+        else:
+            for j in range(R):
+                for c in range(3):
+                    B[j, c, :n] = ring_b[j, c, lo:lo + n]
+                E2[j, :n] = e2[j, lo:lo + n]
+        _norms(B, n, RHO, INV)
+        _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank,
+                     inv_zscale, binary, T, pairs, tris)
+        with_b = plain or kind != KIND_NONE
+        if with_b:
             _fuse_block(B, U, n, kind, F, Fb)
-        _store(B, E2, U, Fb, lo, n, kind != KIND_NONE, b, w, ring_normals, ring_albedo, ring_e)
+        if plain:
+            _residual_block(B, E2, Fb, n, G, count, lo, resid)
+        _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e)
