@@ -50,8 +50,9 @@ def _load_revision(rev):
     names = {}
     for mod in ("_wps_kernel", "_wps_weights", "wps"):
         try:
-            src = subprocess.run(["git", "-C", str(root), "show", f"{rev}:psbench/solve/methods/{mod}.py"],
-                                 check=True, capture_output=True, text=True).stdout
+            src = subprocess.run(
+                ["git", "-C", str(root), "show", f"{rev}:psbench/solve/methods/{mod}.py"],
+                check=True, capture_output=True, text=True).stdout
         except subprocess.CalledProcessError:
             continue  # a revision before the kernel module existed
         for other, new in names.items():
@@ -68,8 +69,8 @@ def _load_revision(rev):
         names[mod] = new
     module = sys.modules[f"psbench.solve.methods.{names['wps']}"]
     name = f"wps@{rev}"
-    registry.register("methods", Method(name, module.wps, options=module.WPSOptions, masked=False,
-                                        help=f"WPS at {rev}"), replace=True)
+    registry.register("methods", Method(name, module.wps, options=module.WPSOptions,
+                                        masked=False, help=f"WPS at {rev}"), replace=True)
     return name
 
 
@@ -133,8 +134,8 @@ def main(argv=None):
         cases.update({f"{old} {k}": f for k, f in _cases(I, lay, truth, old).items()})
 
     print(f"WPS vs plain PS: {a.size}x{a.size}, 16 images (30x8+60x8), medians of {a.rounds} "
-          f"interleaved rounds; numba {numba.__version__} ({numba.threading_layer()} threading layer), "
-          f"{os.cpu_count()} CPUs")
+          f"interleaved rounds; numba {numba.__version__} ({numba.threading_layer()} "
+          f"threading layer), {os.cpu_count()} CPUs")
     print(f"first WPS call of the process (compile or cache load): {first:.2f} s; "
           f"first oracle call: {first_oracle:.2f} s")
     for nt in [int(x) for x in a.threads.split(",")]:

@@ -97,7 +97,8 @@ def _solve_block(I2, lo, n, order, start, P, G, B, E2):
         m = start[j]
         while m + 4 <= start[j + 1]:
             ia, ib, ic, id = order[m], order[m + 1], order[m + 2], order[m + 3]
-            xa, xb, xc, xd = I2[ia, lo:lo + n], I2[ib, lo:lo + n], I2[ic, lo:lo + n], I2[id, lo:lo + n]
+            xa, xb = I2[ia, lo:lo + n], I2[ib, lo:lo + n]
+            xc, xd = I2[ic, lo:lo + n], I2[id, lo:lo + n]
             a0, a1, a2 = P[ia, 0], P[ia, 1], P[ia, 2]
             b0, b1, b2 = P[ib, 0], P[ib, 1], P[ib, 2]
             c0, c1, c2 = P[ic, 0], P[ic, 1], P[ic, 2]
@@ -247,7 +248,8 @@ def _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary):
                 p0 = al * ix[q] + be * jx[q]
                 p1 = al * iy[q] + be * jy[q]
                 p2 = al * iz[q] + be * jz[q]
-                cin = (p0 * tx[q] + p1 * ty[q] + p2 * tz[q]) / math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+                pn = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+                cin = (p0 * tx[q] + p1 * ty[q] + p2 * tz[q]) / pn
                 use1 = a1[q] >= a2[q]
                 cos = cin if inside else (a1[q] if use1 else a2[q])
                 c1[q] = al if inside else (1.0 if use1 else 0.0)
@@ -325,8 +327,9 @@ def _norms(B, n, RHO, INV):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale, binary,
-                 T, pairs, tris):
+def _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale,
+                 binary, T, pairs, tris):
+    """The block's ring weights (R, n) into U."""
     if kind == KIND_NONE:
         for j in range(B.shape[0]):
             U[j, :n] = share[j]
@@ -495,4 +498,5 @@ def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src,
             _fuse_block(B, U, n, kind, F, Fb)
         if plain:
             _residual_block(B, E2, Fb, n, G, count, lo, resid)
-        _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e)
+        _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo,
+               ring_e)

@@ -48,7 +48,8 @@ Decisions (where the thesis leaves room)
 * **Masks.** WPS is registered with ``masked=False``: each ring is solved by the mask
   engine on its own images and layout (``Problem.engine``: thresholds resolved for the
   ring's image count, ``weighted`` applied per ring). ``mask="None"`` without
-  ``weighted`` solves every ring with one least-squares product.
+  ``weighted`` solves every ring, measures its residual, weighs and fuses in one
+  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`).
 
 Rings are reported in ``Layout.rings()`` order (ring id order), which is the order of
 the ring notation (``"30x8+60x8"``: ring 0 = 30 degrees).
