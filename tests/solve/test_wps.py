@@ -246,13 +246,14 @@ def test_weights_per_observation_ring_weights_per_ring(ts_scene):
 
 @pytest.mark.parametrize("R", [2, 3, 5])
 def test_binary_weights_are_the_first_maximum(R):
-    from psbench.solve.methods.wps import _one_hot_max
+    from psbench.solve.methods._wps_kernel import _one_hot
 
-    u = np.random.default_rng(R).random((R, 500)).astype(np.float32)
+    u = np.random.default_rng(R).random((R, 500))
     u[:, :20] = 0.5                                   # ties: the earlier ring, as argmax
     ref = np.zeros_like(u)
     ref[np.argmax(u, axis=0), np.arange(500)] = 1.0
-    np.testing.assert_array_equal(_one_hot_max(u), ref)
+    _one_hot(u, 500)
+    np.testing.assert_array_equal(u, ref)
 
 
 def test_weight_none_is_least_squares_over_every_image():
@@ -269,3 +270,177 @@ def test_weight_none_is_least_squares_over_every_image():
     np.testing.assert_allclose(w.normals[m], p.normals[m], atol=1e-5)
     np.testing.assert_allclose(w.albedo[m], p.albedo[m], rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(w.residual[m], p.residual[m], rtol=1e-3, atol=1e-4)
+
+
+# --- the compiled kernel against a numpy reference of Eqs. 4.10-4.16 and the oracle ----
+
+def _ref_arc(n1, n2, r):
+    a1, a2, c = (n1 * r).sum(0), (n2 * r).sum(0), (n1 * n2).sum(0)
+    den = 1.0 - c * c
+    ok = den > 1e-12
+    den = np.where(ok, den, 1.0)
+    al, be = (a1 - c * a2) / den, (a2 - c * a1) / den
+    inside = ok & (al >= 0) & (be >= 0) & ((al + be) > 0)
+    p = al * n1 + be * n2
+    pn = np.sqrt((p * p).sum(0))
+    cos_in = np.where(inside, (p * r).sum(0) / np.where(inside, pn, 1.0), -2.0)
+    use1 = a1 >= a2
+    c1 = np.where(inside, al, np.where(use1, 1.0, 0.0))
+    c2 = np.where(inside, be, np.where(use1, 0.0, 1.0))
+    return c1, c2, np.where(inside, cos_in, np.maximum(a1, a2))
+
+
+def _ref_oracle(B, r, binary):
+    """numpy reference of the oracle (float64): best single ring, arcs, cones of three."""
+    import itertools
+    R, _, N = B.shape
+    rho = np.sqrt((B * B).sum(1))
+    n = B / np.maximum(rho, 1e-30)[:, None]
+    r = r / np.maximum(np.sqrt((r * r).sum(0)), 1e-30)
+    cs = (n * r[None]).sum(1)
+    best = np.argmax(cs, axis=0)
+    bestcos = np.take_along_axis(cs, best[None], 0)[0]
+    C = np.zeros((R, N))
+    C[best, np.arange(N)] = 1.0
+    if not binary:
+        for i, j in itertools.combinations(range(R), 2):
+            c1, c2, cos = _ref_arc(n[i], n[j], r)
+            better = cos > bestcos
+            C[:, better] = 0.0
+            C[i, better], C[j, better] = c1[better], c2[better]
+            bestcos = np.where(better, cos, bestcos)
+        for tri in itertools.combinations(range(R), 3):
+            M = np.moveaxis(np.stack([n[t] for t in tri], axis=-1), 1, 0)
+            ok = np.abs(np.linalg.det(M)) > 1e-9
+            coef = np.zeros((N, 3))
+            coef[ok] = np.linalg.solve(M[ok], r.T[ok][..., None])[..., 0]
+            inside = ok & (coef >= 0).all(axis=1) & (bestcos < 1.0)
+            C[:, inside] = 0.0
+            for q, t in enumerate(tri):
+                C[t, inside] = coef[inside, q]
+            bestcos = np.where(inside, 1.0, bestcos)
+    w = C / np.maximum(rho, 1e-30)
+    s = w.sum(0)
+    return np.where(s > 0, w / np.where(s > 0, s, 1.0), 1.0 / R)
+
+
+def _ref_weights(weight, binary, B, e2, zen, rank, z_scale=90.0, truth=None):
+    """numpy reference of the ring weights (float64) from ring b (R, 3, N), e^2 (R, N)."""
+    R, _, N = B.shape
+    if weight == "oracle":
+        return _ref_oracle(B, truth, binary)
+    u = 1.0 / (e2 + 1e-30)
+    for j in range(R):
+        if weight in ("eZsource", "eZsourceZsurface"):
+            u[j] *= np.sin(np.radians(zen[j]))
+        if weight in ("eZsurface", "eZsourceZsurface"):
+            rho = np.sqrt((B[j] ** 2).sum(0))
+            zs = np.degrees(np.arccos(np.clip(B[j, 2] / np.maximum(rho, 1e-30), -1, 1)))
+            z, t = zs / z_scale, rank[j]
+            u[j] *= 1.0 / (1.0 + np.exp(-10.0 * ((1 - t) * z + t * (1 - z) - 0.5)))
+    if binary:
+        w = np.zeros_like(u)
+        w[np.argmax(u, axis=0), np.arange(N)] = 1.0
+        return w
+    return u / u.sum(0)
+
+
+def _kernel_weights(weight, binary, B, e2, lay, truth=None, z_scale=90.0):
+    """The compiled weights (masked path's kernel) on given float32 ring b and e^2."""
+    from psbench.solve.methods import _wps_kernel as K
+    from psbench.solve.methods import wps as W
+    R, _, N = B.shape
+    rings = W._rings(lay)
+    zen, args = W._ring_setup(lay, rings, W.WPSOptions(weight=weight, binary=binary,
+                                                        z_scale=z_scale),
+                              None if truth is None else truth.T.reshape(1, N, 3), N)
+    w = np.empty((R, N), dtype=np.float32)
+    K.weigh_rings(B, e2, *args, np.empty((N, 3), np.float32), w,
+                  np.empty((R, N, 3), np.float32), np.empty((R, N), np.float32),
+                  np.empty((R, N), np.float32))
+    return w, zen
+
+
+@pytest.mark.parametrize("spec", ["30x8+60x8", "30x4+45x4+60x4"])
+@pytest.mark.parametrize("weight", WEIGHTED)
+@pytest.mark.parametrize("z_scale", [90.0, 40.0])
+def test_kernel_weights_match_numpy_reference(spec, weight, z_scale):
+    rng = np.random.default_rng(7)
+    lay = layout(spec)
+    R, N = len(lay.rings()), 3000
+    n = rng.normal(size=(R, 3, N))
+    n[:, 2] = np.abs(n[:, 2]) + 0.3          # zeniths across 0-90 degrees
+    B = (n / np.linalg.norm(n, axis=1, keepdims=True) * rng.uniform(0.2, 1, (R, 1, N)))
+    B = B.astype(np.float32)
+    e2 = (10.0 ** rng.uniform(-6, -1, (R, N))).astype(np.float32)
+    from psbench.solve.methods.wps import _ranks
+    zen, rank = _ranks(lay, lay.rings())
+    for binary in (False, True):
+        w, _ = _kernel_weights(weight, binary, B, e2, lay, z_scale=z_scale)
+        ref = _ref_weights(weight, binary, B.astype(np.float64), e2.astype(np.float64), zen,
+                           rank, z_scale)
+        np.testing.assert_allclose(w, ref, rtol=2e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("R", [2, 3, 4])
+def test_kernel_oracle_matches_numpy_reference(R):
+    from psbench.solve.wps import oracle_weights
+    rng = np.random.default_rng(R)
+    N = 4000
+    truth = rng.normal(size=(3, N))
+    truth[2] = np.abs(truth[2]) + 0.5
+    truth /= np.linalg.norm(truth, axis=0)
+    # ring normals scattered around the truth, so that every case occurs (inside an arc
+    # or a cone of three, on an edge, single ring)
+    B = truth[None] + rng.normal(scale=0.3, size=(R, 3, N))
+    B *= rng.uniform(0.3, 1.0, (R, 1, N))
+    B = B.astype(np.float32)
+    t32 = truth.astype(np.float32)
+    for binary in (False, True):
+        w = oracle_weights(B, t32, binary=binary)
+        ref = _ref_oracle(B.astype(np.float64), t32.astype(np.float64), binary)
+        np.testing.assert_allclose(w, ref, rtol=1e-5, atol=1e-6)
+
+
+def test_plain_pass_matches_ring_least_squares_and_its_own_weights(ts_scene):
+    """The one-pass kernel: every ring's least squares and RMS residual (numpy lstsq,
+    float64), and weights equal to the compiled weights of those ring solutions."""
+    I, lay, surf = ts_scene
+    k, H, W = I.shape
+    N = H * W
+    for weight in WEIGHTS:
+        r = wps(I, lay, weight=weight, truth_normals=surf.normals)
+        B = np.empty((2, 3, N), np.float32)
+        e2 = np.empty((2, N), np.float32)
+        for j, idx in enumerate(lay.rings()):
+            Ij = I[idx].reshape(idx.size, N).astype(np.float64)
+            bj, *_ = np.linalg.lstsq(lay.S[idx].astype(np.float64), Ij, rcond=None)
+            ej = np.sqrt(((Ij - lay.S[idx] @ bj) ** 2).mean(0))
+            got = (r.ring_normals[j] * r.ring_albedo[j][..., None]).reshape(N, 3).T
+            np.testing.assert_allclose(got, bj, atol=2e-6)
+            np.testing.assert_allclose(r.ring_residual[j].ravel(), ej, rtol=1e-4, atol=1e-6)
+            B[j], e2[j] = bj, ej ** 2
+        w, _ = _kernel_weights(weight, False, B, e2, lay,
+                               truth=surf.normals.reshape(N, 3).T if weight == "oracle" else None)
+        np.testing.assert_allclose(r.ring_weights.reshape(2, N), w,
+                                   atol=1e-3 if weight == "oracle" else 1e-5)
+
+
+@pytest.mark.parametrize("weight", WEIGHTS)
+def test_kernel_results_do_not_depend_on_threads_or_block_edges(weight):
+    """Bit-identical outputs for 1 and 2 threads, on a size that is no multiple of the
+    kernel's pixel block."""
+    import numba
+    I, lay, n = _scene(H=37, noise=0.02, seed=3)
+    runs = []
+    old = numba.get_num_threads()
+    try:
+        for t in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(t)
+            runs.append(wps(I, lay, weight=weight, truth_normals=n))
+    finally:
+        numba.set_num_threads(old)
+    a, b = runs
+    for f in ("normals", "albedo", "residual", "ring_weights", "ring_normals", "ring_albedo",
+              "ring_residual"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)

@@ -48,13 +48,15 @@ Decisions (where the thesis leaves room)
 * **Masks.** WPS is registered with ``masked=False``: each ring is solved by the mask
   engine on its own images and layout (``Problem.engine``: thresholds resolved for the
   ring's image count, ``weighted`` applied per ring). ``mask="None"`` without
-  ``weighted`` solves every ring with one least-squares product.
+  ``weighted`` solves every ring, measures its residual, weighs and fuses in one
+  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`).
 
 Rings are reported in ``Layout.rings()`` order (ring id order), which is the order of
 the ring notation (``"30x8+60x8"``: ring 0 = 30 degrees).
 """
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -65,13 +67,10 @@ from ...registry import Method
 from .. import kernel
 from .._result import Result
 from ..base import Fit, Options
-from ._wps_weights import (DEFAULT_WEIGHT, WEIGHTS, _dot3, _quad3, _transpose, fuse,
-                           oracle_weights, surface_factor)
+from . import _wps_kernel as _k
+from ._wps_weights import DEFAULT_WEIGHT, WEIGHTS
 
 __all__ = ["WPSOptions", "WPSResult", "wps", "METHOD"]
-
-_EPS = np.float32(1e-30)
-
 
 @dataclass
 class WPSOptions(Options):
@@ -160,30 +159,52 @@ def _ranks(lay, rings):
     return zen, rank
 
 
-def _plain_rings(I2, S, rings, k):
-    """Every ring's b and mean squared residual from one product ``M^T I``: M stacks the
-    rings' pseudo-inverses and orthonormal bases U_j of null(S_j^T), so that
-    ``|I_j - S_j b_j| = |U_j^T I_j|`` exactly."""
-    R, N = len(rings), I2.shape[1]
-    dof = [idx.size - 3 for idx in rings]
-    M = np.zeros((k, 3 * R + sum(dof)))
-    col = 3 * R
+def _ring_setup(lay, rings, options, truth, N):
+    """The kernels' constants: weight kind and factors, ring pairs / triples (oracle)."""
+    weight, R = options.weight, len(rings)
+    zen, rank = _ranks(lay, rings)
+    kind = {"None": _k.KIND_NONE, "oracle": _k.KIND_ORACLE}.get(weight, _k.KIND_E)
+    share = np.array([np.float32(idx.size / lay.S.shape[0]) for idx in rings])
+    sinz = np.array([np.float32(np.sin(np.radians(z))) for z in zen], dtype=np.float64)
+    # writable C float32 either way: numba compiles read-only arrays separately
+    T = (np.require(truth.reshape(N, 3), np.float32, ["C", "W"]) if kind == _k.KIND_ORACLE
+         else np.zeros((1, 3), dtype=np.float32))
+    pairs = np.array(list(itertools.combinations(range(R), 2)), dtype=np.int64).reshape(-1, 2)
+    tris = np.array(list(itertools.combinations(range(R), 3)), dtype=np.int64).reshape(-1, 3)
+    args = (kind, share, weight in ("eZsource", "eZsourceZsurface"),
+            weight in ("eZsurface", "eZsourceZsurface"), sinz, rank.astype(np.float64),
+            1.0 / float(options.z_scale), bool(options.binary), T, pairs, tris)
+    return zen, args
+
+
+def _outputs(R, N):
+    return (np.empty((N, 3), dtype=np.float32), np.empty((R, N), dtype=np.float32),
+            np.empty((R, N, 3), dtype=np.float32), np.empty((R, N), dtype=np.float32),
+            np.empty((R, N), dtype=np.float32))
+
+
+def _plain(I2, S, rings, args):
+    """Every ring's solve, residual, weights and the fusion in one pass over the images
+    (:func:`psbench.solve.methods._wps_kernel.plain_rings`)."""
+    k, N = I2.shape
+    R = len(rings)
+    order = np.concatenate(rings).astype(np.int64)
+    start = np.cumsum([0] + [idx.size for idx in rings]).astype(np.int64)
+    P = np.empty((k, 3))
+    G = np.empty((R, 3, 3))
     for j, idx in enumerate(rings):
-        M[idx, 3 * j:3 * j + 3] = np.linalg.pinv(S[idx]).T
-        if dof[j]:
-            U = np.linalg.svd(S[idx], full_matrices=True)[0]
-            M[idx, col:col + dof[j]] = U[:, 3:]
-        col += dof[j]
-    X = M.T.astype(np.float32) @ I2  # (3R + sum dof, N), rows contiguous
-    e2 = np.zeros((R, N), dtype=np.float32)
-    col = 3 * R
-    for j, idx in enumerate(rings):
-        if dof[j]:
-            Xj = X[col:col + dof[j]]
-            np.einsum("ij,ij->j", Xj, Xj, out=e2[j])
-            e2[j] *= np.float32(1.0 / idx.size)
-        col += dof[j]
-    return [X[3 * j:3 * j + 3] for j in range(R)], e2
+        P[idx] = np.linalg.pinv(S[idx]).T
+        G[j] = S[idx].T @ S[idx]
+    # weight "None": least squares over every image from the ring solutions,
+    # S^T I = sum_j G_j b_j (full-rank rings), so b = sum_j (A G_j) b_j, A = (S^T S)^-1
+    A = np.linalg.inv(G.sum(0))
+    F = np.einsum("ab,jbc->jac", A, G)
+    count = np.diff(start)
+    b, w, ring_normals, ring_albedo, ring_e = _outputs(R, N)
+    resid = np.empty(N, dtype=np.float32)
+    _k.plain_rings(np.ascontiguousarray(I2), order, start, P, F, G, count, *args, b, resid, w,
+                   ring_normals, ring_albedo, ring_e)
+    return b, resid, w, ring_normals, ring_albedo, ring_e
 
 
 def _masked_rings(problem, rings, S, N):
@@ -191,7 +212,7 @@ def _masked_rings(problem, rings, S, N):
     images, lay = problem.images, problem.lights
     k, H, W = images.shape
     R = len(rings)
-    X = np.empty((3 * R, N), dtype=np.float32)
+    X = np.empty((R, 3, N), dtype=np.float32)
     e2 = np.empty((R, N), dtype=np.float32)
     valid = np.ones((k, H, W), dtype=bool)
     obs_w = None
@@ -199,7 +220,7 @@ def _masked_rings(problem, rings, S, N):
     for j, idx in enumerate(rings):
         rj = problem.engine(images[idx], lay.subset(idx), truth_normals=problem.truth_normals)
         bj = rj.normals * rj.albedo[..., None]
-        X[3 * j:3 * j + 3] = bj.reshape(N, 3).T
+        X[j] = bj.reshape(N, 3).T
         vj = rj.valid
         valid[idx] = vj
         r2 = (images[idx] - kernel.lambert(bj, S[idx])) ** 2
@@ -215,61 +236,17 @@ def _masked_rings(problem, rings, S, N):
         converged = converged and rj.converged is not False
         thr[f"ring{j}"] = rj.thresholds
         infos.append(rj.info)
-    ring_b = [X[3 * j:3 * j + 3] for j in range(R)]
-    return ring_b, e2, valid, obs_w, iterations, converged, thr, infos
-
-
-def _weights(weight, binary, ring_b, e2, rho, rings, k, zen, rank, z_scale, truth, N):
-    """Eqs. 4.10-4.16 (module docs) -> (R, N) float32."""
-    R = len(rings)
-    if weight == "None":
-        w = np.empty((R, N), dtype=np.float32)
-        for j, idx in enumerate(rings):
-            w[j] = idx.size / k
-        return w
-    if weight == "oracle":
-        return oracle_weights(np.stack(ring_b), truth.reshape(N, 3).T, binary=binary)
-    u = np.empty((R, N), dtype=np.float32)
-    for j in range(R):
-        uj = u[j]
-        np.add(e2[j], _EPS, out=uj)
-        np.divide(np.float32(1.0), uj, out=uj)
-        if weight in ("eZsource", "eZsourceZsurface"):
-            uj *= np.float32(np.sin(np.radians(zen[j])))
-        if weight in ("eZsurface", "eZsourceZsurface"):
-            nz = ring_b[j][2] / np.maximum(rho[j], np.float32(1e-30))
-            np.clip(nz, -1.0, 1.0, out=nz)
-            zs = np.arccos(nz, out=nz)
-            zs *= np.float32(180.0 / np.pi)
-            uj *= surface_factor(zs, rank[j], z_scale=z_scale)
-    if binary:
-        return _one_hot_max(u)
-    u /= u.sum(axis=0)
-    return u
-
-
-def _one_hot_max(u):
-    """(R, N) -> float32 one-hot of the first maximum per column (``argmax``), ring by
-    ring: numpy's argmax over a short first axis is strided and ~30x slower."""
-    R, N = u.shape
-    best = u[0].copy()
-    pick = np.zeros(N, dtype=np.int16)
-    for j in range(1, R):
-        gt = u[j] > best                  # strict: ties keep the earlier ring, as argmax
-        pick[gt] = j
-        np.maximum(best, u[j], out=best)
-    w = np.empty((R, N), dtype=np.float32)
-    for j in range(R):
-        np.equal(pick, j, out=w[j], casting="unsafe")
-    return w
+    return X, e2, valid, obs_w, iterations, converged, thr, infos
 
 
 def wps(problem, options):
     """Weighted multi-zenith PS (Section 4.3): solve each ring, weight, fuse (Eq. 4.9).
 
-    Without a mask everything comes from one product ``I^T M`` (:func:`_plain_rings`);
-    the fused residual then follows without another pass over the images from
-    Pythagoras, ``|I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T S_j^T S_j (b_j - b)``.
+    Without a mask one compiled pass over the images does everything
+    (:func:`_plain`); the fused residual then follows from Pythagoras,
+    ``|I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T S_j^T S_j (b_j - b)``. With a
+    mask the rings come from the mask engine and only the weights and the fusion are
+    compiled (:func:`psbench.solve.methods._wps_kernel.weigh_rings`).
     """
     images, lay, truth = problem.images, problem.lights, problem.truth_normals
     weight, binary = options.weight, bool(options.binary)
@@ -280,66 +257,38 @@ def wps(problem, options):
     k, H, W = images.shape
     N, R = H * W, len(rings)
     S = lay.S.astype(np.float64)
-    I2 = images.reshape(k, N)
-    zen, rank = _ranks(lay, rings)
+    zen, args = _ring_setup(lay, rings, options, truth, N)
     tm = {}
     t = time.perf_counter()
     plain = problem.mask == "None" and not options.weighted
     info = {"ring_zeniths": zen.tolist()}
-    iterations, converged, thr, obs_w, valid = 0, True, {}, None, None
+    iterations, converged, thr, obs_w = 0, True, {}, None
     if plain:
-        ring_b, e2 = _plain_rings(I2, S, rings, k)
+        b, resid, w, ring_normals, ring_albedo, ring_e = _plain(images.reshape(k, N), S,
+                                                                rings, args)
+        resid = resid.reshape(H, W)
+        valid = np.ones((k, H, W), dtype=bool)
+        tm["rings"] = time.perf_counter() - t
     else:
         ring_b, e2, valid, obs_w, iterations, converged, thr, info["rings"] = _masked_rings(
             problem, rings, S, N)
-    rho = np.empty((R, N), dtype=np.float32)
-    for j in range(R):
-        np.sqrt(_dot3(ring_b[j], ring_b[j]), out=rho[j])
-    tm["rings"] = time.perf_counter() - t
-    t = time.perf_counter()
-    w = _weights(weight, binary, ring_b, e2, rho, rings, k, zen, rank, options.z_scale, truth, N)
-    tm["weights"] = time.perf_counter() - t
-    t = time.perf_counter()
-    if weight != "None":
-        bf = fuse(ring_b, w)  # (3, N)
-        b = _transpose(bf, N)
-    elif plain:
-        # least squares over every image from the ring solutions, without another pass
-        # over the images: S^T I = sum_j G_j b_j with G_j = S_j^T S_j (full-rank rings)
-        G = [S[idx].T @ S[idx] for idx in rings]
-        A = np.linalg.inv(sum(G))
-        bf = sum((A @ G[j]).astype(np.float32) @ ring_b[j] for j in range(R))
-        b = _transpose(bf, N)
-    else:  # "2Z PS" with the mask: one masked solve over every image
-        r0 = problem.engine(images, lay)
-        b = (r0.normals * r0.albedo[..., None]).reshape(N, 3)
-        valid, obs_w = r0.valid, r0.weights
-    tm["fuse"] = time.perf_counter() - t
-    t = time.perf_counter()
-    if plain:
-        # Pythagoras per ring: |I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T G_j (b_j - b)
-        bo = bf  # fused rho n, (3, N)
-        r2 = np.zeros(N, dtype=np.float32)
-        for j, idx in enumerate(rings):
-            r2 += _quad3(ring_b[j] - bo, S[idx].T @ S[idx])
-            r2 += e2[j] * np.float32(idx.size)
-        resid = np.sqrt(r2).reshape(H, W)
-        valid = np.ones((k, H, W), dtype=bool)
-    else:
+        tm["rings"] = time.perf_counter() - t
+        t = time.perf_counter()
+        b, w, ring_normals, ring_albedo, ring_e = _outputs(R, N)
+        _k.weigh_rings(ring_b, e2, *args, b, w, ring_normals, ring_albedo, ring_e)
+        if weight == "None":  # "2Z PS" with the mask: one masked solve over every image
+            r0 = problem.engine(images, lay)
+            b = (r0.normals * r0.albedo[..., None]).reshape(N, 3)
+            valid, obs_w = r0.valid, r0.weights
+        tm["weights"] = time.perf_counter() - t
+        t = time.perf_counter()
         normals, albedo = kernel.split(b.reshape(H, W, 3))
         resid = kernel.residual_norm(images, normals * albedo[..., None], S,
                                      None if valid.all() else valid)
-    tm["residual"] = time.perf_counter() - t
-    ring_normals = np.empty((R, N, 3), dtype=np.float32)
-    for j in range(R):
-        inv = np.float32(1.0) / np.maximum(rho[j], np.float32(1e-30))
-        for c in range(3):
-            np.multiply(ring_b[j][c], inv, out=ring_normals[j][:, c])
-        zero = rho[j] <= 1e-6
-        if zero.any():
-            ring_normals[j][zero] = (0.0, 0.0, 1.0)
-    fields = dict(ring_normals=ring_normals.reshape(R, H, W, 3), ring_albedo=rho.reshape(R, H, W),
-                  ring_residual=np.sqrt(e2).reshape(R, H, W), weight=weight, binary=binary,
+        tm["residual"] = time.perf_counter() - t
+    fields = dict(ring_normals=ring_normals.reshape(R, H, W, 3),
+                  ring_albedo=ring_albedo.reshape(R, H, W),
+                  ring_residual=ring_e.reshape(R, H, W), weight=weight, binary=binary,
                   thresholds=thr)
     return Fit(b=b.reshape(H, W, 3), valid=valid, weights=obs_w, iterations=iterations,
                converged=converged, info=info, residual=resid, ring_weights=w.reshape(R, H, W),
