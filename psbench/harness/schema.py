@@ -14,7 +14,8 @@ One row per run. Column groups:
   ``bounces`` > 0), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
   ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
-  0 when the scene came from the chunk's cache; ``t_solve``; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
+  0 when the scene came from the chunk's cache; ``t_solve``: the solve, after an
+  untimed warm-up solve of a 16 x 16 crop that loads compiled kernels; ``t_total``: the whole run; ``t_cpu``: CPU seconds of the process during the run, a
   load-independent cost figure), ``peak_mem_mb`` the peak resident set of
   the process that ran the run (reset before each run where Linux allows it);
 - payloads: json strings (``ne_by_zenith``, ``payload`` of analysis runs); ``ne_map``
