@@ -7,11 +7,13 @@ Sections (all by default; pick with ``--only``):
     shadows, 5 % noise: median wall and CPU time of ``--runs`` runs of plain least
     squares (mask None, the baseline), Th-Hi-Re-Sh, the registered ``robust``
     method, tsfit (default options: its start is ``robust``) and tsfit with the
-    cheaper ``start="trimmed"``, all in the same run, as the library runs them
-    (BLAS threads as numpy sets them; tsfit pins its own fit to one BLAS thread).
-    Then the same methods under ``threadpoolctl.threadpool_limits(1)``, and tsfit
-    with its pinning switched off, to show what pinning does. Target: <= 1 s at
-    512^2 x 16 on 2 cores.
+    cheaper ``start="trimmed"``, all in the same run: with numba's default threads
+    (a user's direct call) and pinned to one BLAS and numba thread (as a psbench run
+    does). The first call's time in a fresh process (compiling the kernels into an
+    empty cache, then loading them from it) is printed separately. With
+    ``--baseline DIR`` (a psbench source tree, e.g. ``git archive main psbench | tar
+    -x -C DIR``) the same tsfit run is timed in a fresh process on that tree and on
+    this one. Target: <= 1 s at 512^2 x 16.
 ``memory``
     Peak resident memory of one tsfit run at ``--mem-size`` (2048) x 16 in a fresh
     process (``start="trimmed"`` and the default start), against the image stack.
@@ -36,6 +38,7 @@ Usage::
 
     python benchmarks/tsfit.py [--only timing memory diligent tables] [--runs 5]
                                [--size 512] [--mem-size 2048] [--data DIR] [--quick]
+                               [--baseline DIR]
 """
 from __future__ import annotations
 
@@ -53,7 +56,6 @@ import numpy as np
 
 import psbench as ps
 from psbench import registry
-from psbench.solve.methods import tsfit as tsfit_module
 from psbench.solve.methods._tsfit_eval import noise_comparison, problem
 from psbench.solve.methods._tsstart import resolve_start
 from psbench.solve.methods.tsfit import TsfitOptions, tsfit
@@ -99,54 +101,124 @@ def _methods(images, lay, mask, pr):
     return out
 
 
-@contextlib.contextmanager
-def _blas(limit):
-    if limit is None:
-        yield
-        return
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=limit, user_api="blas"):
-        yield
+#: acceptance targets of issue 16 (seconds)
+TARGET_512, TARGET_DILIGENT = 1.0, 3.0
+
+
+def _verdict(value, target):
+    return f"{value:.2f} s vs <= {target:.0f} s: {'MET' if value <= target else 'NOT MET'}"
+
+
+def _threads():
+    import numba
+    from threadpoolctl import threadpool_info
+    blas = sorted({i.get("num_threads") for i in threadpool_info() if i.get("user_api") == "blas"})
+    return f"BLAS threads {blas}, numba threads {numba.get_num_threads()}"
+
+
+_TIMING_CHILD = r"""
+import json, sys, time, warnings
+import numpy as np, psbench as ps
+from psbench.solve.methods._tsfit_eval import problem
+from psbench.solve.methods.tsfit import tsfit
+warnings.simplefilter("ignore")
+size, runs, pin = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "1"
+surf = ps.make_surface("sombrero2", size=size)
+lay = ps.layout("45x16")
+scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0, shadows=True)
+pr = problem(scene.images, lay, surf.object_mask)
+t = time.perf_counter()
+fit = tsfit(pr)
+first = time.perf_counter() - t
+import contextlib
+ctx = contextlib.nullcontext()
+if pin:
+    from psbench.harness.run import pinned_threads
+    ctx = pinned_threads()
+wall, cpu = [], []
+with ctx:
+    for _ in range(runs):
+        t, c = time.perf_counter(), time.process_time()
+        fit = tsfit(pr)
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+n = fit.b / np.maximum(np.linalg.norm(fit.b, axis=2, keepdims=True), 1e-12)
+ne = ps.normal_error(n.astype(np.float32), surf.normals, object_mask=surf.object_mask)
+print(json.dumps(dict(first=first, wall=float(np.median(wall)), cpu=float(np.median(cpu)),
+                      ne=float(ne))))
+"""
+
+
+def _child(code, argv, env=None, cwd=None):
+    """Run ``code`` in a fresh interpreter; its last stdout line is JSON. ``cwd``: the
+    directory whose ``psbench/`` it imports (``python -c`` puts it first on sys.path)."""
+    out = subprocess.run([sys.executable, "-c", code, *map(str, argv)], capture_output=True,
+                         text=True, check=True, env=env,
+                         cwd=cwd or Path(__file__).resolve().parents[1])
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def section_timing(args):
-    from threadpoolctl import threadpool_info
-    blas = [(i.get("internal_api"), i.get("num_threads")) for i in threadpool_info()
-            if i.get("user_api") == "blas"]
+    import tempfile
+
+    import numba
+    from psbench.harness.run import pinned_threads
     print(f"\n## Timing: sombrero2 {args.size}^2 x 16 (45x16), TS, cast shadows, 5 % noise "
-          f"[{load()}; BLAS {blas}]")
+          f"[{load()}]")
     surf = ps.make_surface("sombrero2", size=args.size)
     lay = ps.layout("45x16")
     scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0, shadows=True)
     mask = surf.object_mask
     pr = problem(scene.images, lay, mask)
-    print("| BLAS threads | method | median wall s | median CPU s | wall / LS | NE deg |")
+    # first call in a fresh process: compiling the kernels (empty numba cache) and
+    # loading them from the cache (what every later process pays)
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        cold = _child(_TIMING_CHILD, [64, 1, 0], env)["first"]
+        warm = _child(_TIMING_CHILD, [64, 1, 0], env)["first"]
+    print(f"first tsfit call in a fresh process (64^2 x 16): {cold:.1f} s with an empty numba "
+          f"cache (compilation), {warm:.2f} s with the kernels cached")
+    tsfit(pr)  # warm-up
+    print("| threads | method | median wall s | median CPU s | wall / LS | NE deg |")
     print("|---|---|---|---|---|---|")
-    last = None
-    for label, limit, pin in (("as the library runs", None, True),
-                              ("all limited to 1 (threadpoolctl)", 1, True),
-                              ("numpy default, tsfit not pinned", None, False)):
-        tsfit_module.PIN_BLAS = pin
+    figures = {}
+    for label, pinned in (("numba default", False), ("pinned (as psbench runs)", True)):
+        ctx = pinned_threads() if pinned else contextlib.nullcontext()
         rows = []
-        with _blas(limit):
+        with ctx:
+            threads = _threads()
             for name, fn in _methods(scene.images, lay, mask, pr):
-                if not pin and not name.startswith("tsfit"):
-                    continue
                 wall, cpu, res = timed(fn, args.runs)
                 rows.append((name, wall, cpu, ne(res.b, surf.normals, mask), res))
-        tsfit_module.PIN_BLAS = True
-        base = rows[0][1] if rows[0][0].startswith("None") else None
+        base = rows[0][1]
         for name, wall, cpu, e, res in rows:
-            ratio = f"{wall / base:.1f}" if base else "-"
-            print(f"| {label} | {name} | {wall:.3f} | {cpu:.3f} | {ratio} | {e:.2f} |")
-            if name.startswith("tsfit") and limit is None and pin:
-                last = res if last is None else last
-    fit = last
+            print(f"| {label}: {threads} | {name} | {wall:.3f} | {cpu:.3f} | "
+                  f"{wall / base:.1f} | {e:.2f} |")
+        figures[label] = rows
+    default = next(r for r in figures["pinned (as psbench runs)"] if r[0].startswith("tsfit"))
+    fit = default[4]
     cpu = {k: round(v, 3) for k, v in fit.info["cpu_timings"].items()}
-    print(f"\ntsfit (default) CPU s per stage (last run): {cpu}; start={fit.info['start']}; "
-          f"mean LM iterations {fit.iterations[mask].mean():.1f}; propagated "
-          f"{fit.info['propagated']} pixels; converged {100 * fit.converged[mask].mean():.2f} %"
-          f"  [{load()}]")
+    print(f"\ntsfit (default) CPU s per stage (last run, pinned): {cpu}; start="
+          f"{fit.info['start']}; mean LM iterations {fit.iterations[mask].mean():.1f}; "
+          f"propagated {fit.info['propagated']} pixels; converged "
+          f"{100 * fit.converged[mask].mean():.2f} %  [{load()}]")
+    if args.baseline:
+        base = Path(args.baseline).resolve()
+        code = _TIMING_CHILD.replace("warnings.simplefilter", "assert ps.__file__.startswith("
+                                     "sys.argv[4]), ps.__file__\nwarnings.simplefilter")
+        old = _child(code, [args.size, args.runs, 1, base], cwd=base)
+        new = _child(code, [args.size, args.runs, 1, Path(__file__).resolve().parents[1]])
+        print(f"\nbaseline {args.baseline} against this tree, each in a fresh process, "
+              f"pinned to 1 thread, medians of {args.runs}: wall {old['wall']:.3f} -> "
+              f"{new['wall']:.3f} s (x{old['wall'] / new['wall']:.2f}), CPU {old['cpu']:.3f} -> "
+              f"{new['cpu']:.3f} s (x{old['cpu'] / new['cpu']:.2f}); NE {old['ne']:.4f} -> "
+              f"{new['ne']:.4f} deg  [{load()}]")
+    print("\n**Acceptance, tsfit default at 512^2 x 16**" if args.size == 512 else
+          f"\n**tsfit default at {args.size}^2 x 16 (the acceptance is at 512^2)**")
+    for label, rows in figures.items():
+        r = next(r for r in rows if r[0].startswith("tsfit"))
+        print(f"- {label}: median wall {_verdict(r[1], TARGET_512)} (CPU {r[2]:.2f} s)")
+    print(f"  [{load()}; numba {numba.__version__}]")
 
 
 _MEM_CHILD = r"""
@@ -189,8 +261,10 @@ def section_memory(args):
 def section_diligent(args):
     root = Path(args.data) if args.data else Path(os.environ.get(
         "PSBENCH_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
+    from psbench.harness.run import pinned_threads
     print(f"\n## DiLiGenT (96 images) [{load()}]")
     start = resolve_start("auto")
+    verdicts = []
     print("NE in degrees; times are medians of --runs runs, wall / CPU seconds, least "
           "squares (LS, the baseline) timed in the same run")
     print("| object | psbench L2 | published L2 | ST14 | HS17 | robust | tsfit (start "
@@ -210,6 +284,11 @@ def section_diligent(args):
         rw, rc, rob = (timed(lambda: _robust(pr), args.runs) if "robust" in registry.methods()
                        else (float("nan"), float("nan"), ls))
         wall, cpu, fit = timed(lambda: tsfit(pr), args.runs)
+        with pinned_threads():
+            pw, pc, _ = timed(lambda: tsfit(pr), args.runs)
+        verdicts.append(f"- {obj}: numba default ({_threads()}) median wall "
+                        f"{_verdict(wall, TARGET_DILIGENT)}; pinned to 1 thread "
+                        f"{_verdict(pw, TARGET_DILIGENT)} (CPU {pc:.2f} s)")
         tw, tc, fit_t = timed(lambda: tsfit(pr, TsfitOptions(start="trimmed")), args.runs)
         fit_px = tsfit(pr, TsfitOptions(rho_s_mode="pixel"))
         p = PUBLISHED[obj]
@@ -221,7 +300,9 @@ def section_diligent(args):
         print(f"|  | shared m = {fit.info['m']:.2f}, rho_s = {fit.info['rho_s']:.4f}, "
               f"converged {100 * fit.converged[mask].mean():.2f} %, CPU s per stage "
               f"{ {k: round(v, 2) for k, v in fit.info['cpu_timings'].items()} } |")
-    print(f"[{load()}]")
+    print("\n**Acceptance, tsfit default on a 96-image DiLiGenT object**")
+    print("\n".join(verdicts))
+    print(f"  [{load()}]")
 
 
 #: (surface, shadows) of the tables: the acceptance's scenes without cast shadows
@@ -261,6 +342,9 @@ def main(argv=None):
     ap.add_argument("--mem-size", type=int, default=2048)
     ap.add_argument("--table-size", type=int, default=128)
     ap.add_argument("--data", default=None)
+    ap.add_argument("--baseline", default=None,
+                    help="a psbench source tree (the directory holding psbench/) to time "
+                         "against, e.g. an export of main")
     ap.add_argument("--quick", action="store_true", help="fewer runs, noise levels, smaller")
     args = ap.parse_args(argv)
     if args.quick:

@@ -12,6 +12,9 @@ from . import _lm
 
 __all__ = ["hemisphere", "grid_start"]
 
+#: (candidates or lights) x pixels per block: a few MB of working set
+BLOCK_ELEMS = 1 << 16
+
 
 def hemisphere(count):
     """``count`` nearly uniform unit vectors with z > 0 (Fibonacci lattice), (count, 3)."""
@@ -62,7 +65,7 @@ def grid_start(L, I, w, n0, m_value, count=256, rs=None):
     lin = np.concatenate([Pd, Ps]).astype(np.float32)  # (2J, k)
     k, P = I.shape
     J = count
-    block = max(64, _lm.BLOCK_ELEMS // max(J, k))
+    block = max(64, BLOCK_ELEMS // max(J, k))
     best = np.empty(P)
     arg = np.empty(P, dtype=np.int64)
     for lo in range(0, P, block):
@@ -76,11 +79,9 @@ def grid_start(L, I, w, n0, m_value, count=256, rs=None):
         best[s] = e[arg[s], np.arange(e.shape[1])]
     # the given start competes with the grid
     m = np.full(P, m_value, dtype=np.float32)
-    rd, rs0 = _lm.init_rho(L, I, w, n0, m, np.full(P, np.inf, dtype=np.float32), rs=rs)
-    own = np.empty(P)
-    for s in _lm.chunks(P, k):
-        own[s] = (_lm.evaluate(L, I[:, s], w[:, s], n0[:, s], rd[s], rs0[s], m[s])
-                  - np.einsum("kp,kp->p", w[:, s] * I[:, s], I[:, s]))
+    _, _, own = _lm.init_rho(L, I, w, n0, m, np.full(P, np.inf, dtype=np.float32), rs=rs,
+                             cost=True)
+    own -= np.einsum("kp,kp->p", w * I, I, dtype=np.float64)
     use = best < own
     n = np.where(use, C[arg].T.astype(np.float32), n0)
     return n, np.where(use, best, own)

@@ -191,16 +191,18 @@ def tsfit(problem, options=None) -> Fit:
        the best of it and ``start_grid`` candidate normals (a hemisphere lattice;
        costs for all pixels at once by matrix products, rho_d in closed form);
        rho_d (and a per-pixel rho_s) in closed form.
-    4. **Per-pixel fit.** Levenberg–Marquardt on all object pixels at once: 3 to 5
-       unknowns per pixel, batched normal equations solved by Cholesky, Marquardt
-       damping, an active set for unknowns at their bounds. The normal moves on the
-       sphere, n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent basis at the
-       current n, so it stays unit and has no pole singularity. Each iteration
-       visits only the pixels not yet converged (``lm_tol``; the final step below
-       it is taken without evaluating it), in cache-sized chunks, up to
-       ``lm_max_iter``; pixels are fitted in memory-bounded groups. Pixels whose
-       residual ends above twice the median restart from the best of 256
-       hemisphere normals and keep the better fit.
+    4. **Per-pixel fit.** Levenberg–Marquardt on every object pixel, each pixel
+       fitted on its own by a compiled kernel (in parallel over pixels; numba's
+       threads): 3 to 5 unknowns per pixel, normal equations solved by Cholesky,
+       Marquardt damping, an active set for unknowns at their bounds. The normal
+       moves on the sphere, n <- normalize(n + a t1 + b t2) with (t1, t2) a tangent
+       basis at the current n, so it stays unit and has no pole singularity. A
+       pixel stops when a step is below ``lm_tol`` (that step is taken without
+       evaluating it unless it moves the normal across a self-shadow terminator,
+       where the model jumps) or after ``lm_max_iter`` iterations; pixels are
+       fitted in memory-bounded groups. Pixels whose residual ends above twice the
+       median restart from the best of 256 hemisphere normals and keep the better
+       fit.
     5. **Refine** (``refine`` rounds): the dark observations are re-decided with
        the fitted model instead of the Lambert start, and the pixels whose weights
        changed are refitted from their solution.
@@ -215,8 +217,9 @@ def tsfit(problem, options=None) -> Fit:
     disc-only hemisphere and sombrero2, 16 lights, 5 % noise; the gap is at grazing
     normals); no unbiased per-pixel method can beat that bound, only a spatial
     prior could. On real photographs and Phong-rendered scenes the model is an
-    approximation (see ``benchmarks/tsfit.py``). The fit runs with one BLAS thread
-    (small matrix products).
+    approximation (see ``benchmarks/tsfit.py``). The matrix products of the grid
+    searches run with one BLAS thread (they are small); the per-pixel kernels use
+    numba's threads (results do not depend on their number).
 
     Pixels with fewer than 5 observations of positive weight, or a zero start
     albedo, keep the start (rho_s = 0, flagged in ``info["kept_start"]``).
