@@ -139,17 +139,29 @@ CHUNK = 1 << 16
 SIGMA_PIXELS = 65536
 
 
-def noise_sigma(I, pred, w):
+def noise_sigma(I, pred, w, *, lambert=False):
     """Per-image noise scale: 1.4826 x the median |I - pred| over the observations
     with weight >= 0.5 (MAD; robust to the minority the model does not explain), on
     at most ``SIGMA_PIXELS`` evenly spaced pixels.
+
+    ``lambert=True`` (``pred`` is a Lambert prediction, without the highlight): only
+    the observations below the prediction count, because a highlight only adds light
+    and above the Lambert part the residual is specular reflection, not noise. A start
+    that keeps the highlights among its inliers (``robust``, whose Torrance-Sparrow
+    step models them) otherwise reports the specular lobe as noise (measured: a scale
+    of 0.84 on noiseless mozart, 64^2, 45x16, which let every cast shadow into the fit:
+    3.6 deg instead of 0.01 deg).
 
     Returns (k,) float32; images without such observations get the median of the
     others (0 if there are none at all).
     """
     step = max(1, I.shape[1] // SIGMA_PIXELS)
-    r = np.abs(I[:, ::step] - pred[:, ::step])
+    r = pred[:, ::step] - I[:, ::step]
     inl = w[:, ::step] >= 0.5
+    if lambert:
+        inl &= r >= 0
+    else:
+        np.abs(r, out=r)
     sig = np.full(r.shape[0], np.nan)
     for i in range(r.shape[0]):  # per image: much faster than nanmedian over NaNs
         ri = r[i][inl[i]]

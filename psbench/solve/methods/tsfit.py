@@ -294,7 +294,8 @@ def _tsfit(problem, opt, start_name):
     if opt.weights == "start":
         step = max(1, idx.size // SIGMA_PIXELS)
         sub = slice(0, None, step)
-        sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub])
+        sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub],
+                            lambert=True)
         del w_start
         w = put_back(I, valid, lambda s: lambert_pred(b0[:, s], S), sigma, opt.dark_ratio,
                      opt.dark_sigmas)

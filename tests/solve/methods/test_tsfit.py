@@ -174,13 +174,13 @@ def test_propagation_only_lowers_costs_and_helps_the_rim():
     # the same fit before propagation; a pixel takes a refit only if its cost drops
     assert (on.info["rms"][mask] <= off.info["rms"][mask] * (1 + 1e-6)).all()
     # since the robust start keeps more pixels out of wrong basins, propagation mends the
-    # few left: measured (seeds 3, 0, 1) mean NE -1 to -3 %, rim (zenith > 60 deg) -2 to
-    # -5 %, 99th percentile -5 to -10 %
+    # few left: measured (seeds 3, 0, 1) mean NE -0.4 to -1.3 %, rim (zenith > 60 deg)
+    # -0.9 to -2.6 %, 99th percentile -0.9 to -2.8 %
     e_on, e_off = _errors(on.b, surf.normals, mask), _errors(off.b, surf.normals, mask)
     assert e_on.mean() < e_off.mean(), (e_on.mean(), e_off.mean())
     rim = (surf.zenith > 60)[mask]
-    assert e_on[rim].mean() < 0.99 * e_off[rim].mean(), (e_on[rim].mean(), e_off[rim].mean())
-    assert np.percentile(e_on, 99) < 0.97 * np.percentile(e_off, 99)
+    assert e_on[rim].mean() < 0.995 * e_off[rim].mean(), (e_on[rim].mean(), e_off[rim].mean())
+    assert np.percentile(e_on, 99) < 0.995 * np.percentile(e_off, 99)
 
 
 @pytest.mark.parametrize("how", ["robust weights", "Sh validity"])
@@ -340,3 +340,14 @@ def test_normal_equations_match_finite_differences():
     r = I - model(np.zeros((5, p)))
     np.testing.assert_allclose(g, np.einsum("ikp,kp,kp->ip", J, w, r), rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(A, np.einsum("ikp,kp,jkp->ijp", J, w, J), rtol=1e-4, atol=1e-4)
+
+
+def test_noise_scale_ignores_the_highlights_a_start_keeps():
+    # the robust start keeps highlights among its inliers; measured against a Lambert
+    # prediction they looked like noise (scale 0.84 on this noiseless scene), which let
+    # the cast shadows into the fit: 3.6 deg before, 0.01 deg with the one-sided scale
+    surf = ps.make_surface("mozart", size=64)
+    lay = ps.layout("45x16")
+    scene = ps.render(surf, lay, model="ts", noise=0.0, seed=0, shadows=True)
+    fit = tsfit(_problem(scene, lay), TsfitOptions())
+    assert float(_errors(fit.b, surf.normals, surf.object_mask).mean()) < 0.1
