@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base import Options, check_choice, check_int, check_number
-from ._robust_common import Pixels, concentrate, masked_median, residuals, wls
+from ._robust_common import Pixels, masked_median, wls
+from ._robust_kernel import KINDS, irls_m
 
 __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
@@ -243,8 +244,7 @@ def start_solution(px: Pixels, start: str):
         d = TrimOptions()
         if start == "trim":
             return trim_fit(px, d.drop_dark, d.drop_bright, d.refine)[0]
-        b = trim_fit(px, d.drop_dark, d.drop_bright, 0)[0]
-        return concentrate(px, b, px.m // 2 + 1, 2)[0]
+        return trim_fit(px, d.drop_dark, d.drop_bright, 2, half=True)[0]
     return px.start()
 
 
@@ -257,39 +257,24 @@ def m_estimate(problem, options: MOptions, *, name, weight, c_default):
     """
     px = Pixels(problem)
     c = np.float32(options.c if options.c is not None else c_default)
-    floor = np.float32(1e-5 * px.scale)
-    all_valid = px.all_valid
-    rescale = options.scale == "update"
-
-    def update(r, V, st):
-        if rescale:
-            st["sigma"] = robust_scale(r, V, all_valid, floor)
-        r *= (np.float32(1) / (c * st["sigma"]))[:, None]   # u = r / (c sigma), in place
-        w = weight(r)
-        if not all_valid:
-            w *= V
-        return w
-
     b0 = start_solution(px, options.start)
-    # the scale of the start's residuals (fixed: MM-estimation; "update": re-estimated
-    # from the current residuals at every iteration)
-    sigma = np.empty(px.n, dtype=np.float32)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        sigma[sl] = robust_scale(residuals(sub, b0[sl]), sub.V, all_valid, floor)
-    b, w, its, conv, st = irls(px, b0, update, n_iter=options.n_iter, tol=options.tol,
-                               state={"sigma": sigma})
-    inlier = np.empty(px.I.shape, dtype=bool)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        r = residuals(sub, b[sl])
-        np.abs(r, out=r)
-        np.less_equal(r, (c * st["sigma"][sl])[:, None], out=inlier[sl])
-        if not all_valid:
-            inlier[sl] &= sub.V
+    n, k = px.n, px.k
+    b = np.empty((n, 3), dtype=np.float32)
+    w = np.empty((k, n), dtype=np.float32)
+    inlier = np.empty((k, n), dtype=bool)
+    its = np.empty(n, dtype=np.int32)
+    conv = np.empty(n, dtype=bool)
+    sigma = np.empty(n, dtype=np.float32)
+    if n:
+        # the scale of the start's residuals, held fixed (MM-estimation) or ("update")
+        # re-estimated from the current residuals at every iteration
+        irls_m(px.Ik, px.kernel_valid(), px.all_valid, px.outer_t, px.S32_t, b0, c,
+               KINDS[name], options.scale == "update", np.float32(1e-5 * px.scale),
+               np.float32(1e-6 * px.scale), np.float32(options.tol), int(options.n_iter),
+               b, w, inlier, its, conv, sigma)
     # w(0) = 1 for every estimator: the weights are already in [0, 1]
     return px.fit(name, b, valid=inlier, weights=w, iterations=its,
-                  converged=conv, n_iter=options.n_iter,
+                  converged=conv, n_iter=options.n_iter, kn=True,
                   info={"c": float(c), "start": options.start, "scale": options.scale,
-                        "scale_median": float(np.median(st["sigma"])) if px.n else 0.0})
+                        "scale_median": float(np.median(sigma)) if px.n else 0.0})
 
