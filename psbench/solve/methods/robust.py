@@ -70,6 +70,7 @@ import numpy as np
 from ...registry import Method
 from ..base import Options, check_choice, check_int, check_number
 from ._robust_common import Pixels
+from . import trim as trim_mod
 from .trim import TrimOptions, trim_fit
 
 __all__ = ["RobustOptions", "robust", "METHOD", "TS_SETTINGS"]
@@ -167,7 +168,9 @@ def robust(problem, options: RobustOptions):
                       kn=True)
     from .tsfit import TsfitOptions, tsfit
 
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, \
+            trim_mod.reuse(problem, trim_mod.result(px, b_l, keep)):
+        # the Torrance-Sparrow step starts from ``trim``: the fit above, not a second one
         warnings.simplefilter("always", RuntimeWarning)
         ts = tsfit(problem, TsfitOptions(**TS_SETTINGS, lm_max_iter=options.n_iter,
                                          lm_tol=options.tol))
