@@ -2,10 +2,12 @@
 
 Every IRLS-type robust method (l1, sbl, huber, cauchy, tukey) alternates: residuals of
 the current solution -> new per-observation weights -> per-pixel weighted least
-squares. :func:`irls` runs that loop on the object pixels in the (n, k) layout and keeps
-iterating only on the pixels that have not converged: a pixel converges when its
-solution moves by at most ``tol`` relative to its length; its result is frozen at
-that iteration, and the working arrays are compacted as pixels drop out.
+squares, and stops per pixel when its solution moves by at most ``tol`` relative to
+its length (its result is frozen at that iteration). :func:`irls` runs that loop with
+numpy on the object pixels in the (n, k) layout for any weight update (l1, sbl),
+compacting the working arrays as pixels drop out; the M-estimators, whose weights are
+a fixed function of the scaled residual, run it fused per pixel in a compiled kernel
+(:func:`._robust_kernel.irls_m`: one pass over a pixel's observations per iteration).
 
 The M-estimators (Huber 1964; Beaton & Tukey 1974; Holland & Welsch, "Robust
 regression using iteratively reweighted least-squares", Commun. Stat. 6, 1977) share
@@ -248,12 +250,14 @@ def start_solution(px: Pixels, start: str):
     return px.start()
 
 
-def m_estimate(problem, options: MOptions, *, name, weight, c_default):
+def m_estimate(problem, options: MOptions, *, name, c_default):
     """IRLS M-estimate with a per-pixel robust scale (see the module docstring).
 
-    ``weight(u)`` maps standardised residuals u = r / (c sigma) (float32, modified in
-    place allowed) to weights in [0, 1]. The Fit carries the final weights and the
-    inlier flags |r| <= c * sigma.
+    ``name`` ("huber", "cauchy" or "tukey") selects the weight function w(u) of the
+    standardised residual u = r / (c sigma) in the compiled per-pixel loop
+    (:func:`._robust_kernel.irls_m`: Huber min(1, 1/|u|), Cauchy 1 / (1 + u^2), Tukey
+    max(0, 1 - u^2)^2). The Fit carries the final weights and the inlier flags
+    |r| <= c * sigma.
     """
     px = Pixels(problem)
     c = np.float32(options.c if options.c is not None else c_default)

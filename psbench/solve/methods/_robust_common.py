@@ -1,10 +1,13 @@
 """Plumbing shared by the robust per-pixel methods (l1, sbl, rpca, M-estimators, trim).
 
-The robust methods work on the object pixels only, in an ``(n, k)`` layout (one row per
-object pixel, one column per image): per-pixel reductions and sorts then run along the
-contiguous last axis, and the per-pixel 3x3 weighted normal equations are two matrix
-products. :class:`Pixels` gathers a :class:`~psbench.solve.base.Problem` into that
-layout and scatters results back into a :class:`~psbench.solve.base.Fit`.
+The robust methods work on the object pixels only. The numpy ones (l1, sbl, rpca) use
+an ``(n, k)`` layout (one row per object pixel, one column per image): per-pixel
+reductions and sorts then run along the contiguous last axis, and the per-pixel 3x3
+weighted normal equations are two matrix products. The compiled kernels
+(:mod:`._robust_kernel`: trim, the M-estimators) read the ``(k, n)`` layout of the
+images themselves (no transposed copy). :class:`Pixels` gathers a
+:class:`~psbench.solve.base.Problem` into either layout on first use and scatters
+results back into a :class:`~psbench.solve.base.Fit`.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ import numpy as np
 
 from ..base import Fit
 
-__all__ = ["Pixels", "wls", "concentrate", "residuals", "sym3_inverse", "leverage", "masked_median", "weights_out"]
+__all__ = ["Pixels", "wls", "leverage", "masked_median", "weights_out"]
 
 _IU = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
 #: observations per block of :meth:`Pixels.blocks` (1 MB of float32)
@@ -241,31 +244,6 @@ class Pixels:
 
 
 # ---------------------------------------------------------------------- linear algebra
-def sym3_inverse(a):
-    """Cofactors and determinant of symmetric 3x3 matrices given as (n, 6) rows.
-
-    Returns
-    -------
-    cof : (n, 6) float32
-        Unique entries of the adjugate (same order as ``a``).
-    det : (n,) float32
-    ok : (n,) bool
-        Numerically non-singular (|det| > 1e-6 trace^3).
-    """
-    a00, a01, a02, a11, a12, a22 = a.T
-    cof = np.empty_like(a)
-    cof[:, 0] = a11 * a22 - a12 * a12
-    cof[:, 1] = a02 * a12 - a01 * a22
-    cof[:, 2] = a01 * a12 - a02 * a11
-    cof[:, 3] = a00 * a22 - a02 * a02
-    cof[:, 4] = a01 * a02 - a00 * a12
-    cof[:, 5] = a00 * a11 - a01 * a01
-    det = a00 * cof[:, 0] + a01 * cof[:, 1] + a02 * cof[:, 2]
-    tr = a00 + a11 + a22
-    ok = np.abs(det) > 1e-6 * tr * tr * tr
-    return cof, det, ok
-
-
 def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
     """Per-pixel weighted least squares in the (n, k) layout.
 
@@ -326,44 +304,6 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
         inv *= inv_det[:, None]
         return b, ok, inv
     return b, ok
-
-
-def residuals(px: Pixels, b):
-    """(n, k) float32 residuals I - S b of the pixels of ``px`` (a fresh array)."""
-    r = np.matmul(b, px.S32.T)
-    return np.subtract(px.I, r, out=r)
-
-
-def concentrate(px: Pixels, b, h, steps):
-    """Least-trimmed-squares concentration steps: keep, per pixel, the ``h`` (n,) valid
-    observations of smallest |residual| of ``b`` (ties kept) and solve again, ``steps``
-    times (Rousseeuw & Van Driessen 2006: a step cannot increase the sum of the h
-    smallest squared residuals). Returns (b, keep (n, k) bool); block by block."""
-    b = np.array(b, dtype=np.float32, copy=True)
-    keep = np.empty(px.I.shape, dtype=bool)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        b[sl], keep[sl] = _concentrate(sub, b[sl], np.asarray(h)[sl], steps, keep[sl])
-    return b, keep
-
-
-def _concentrate(px, b, h, steps, out):
-    I = px.I
-    const = px.all_valid and h.size and np.all(h == h[0])
-    for _ in range(steps):
-        a = np.matmul(b, px.S32.T)
-        np.subtract(I, a, out=a)
-        np.abs(a, out=a)
-        if not px.all_valid:
-            a[~px.V] = np.inf
-        s = np.sort(a, axis=1)
-        if const:
-            t = s[:, h[0] - 1:h[0]]
-        else:
-            t = np.take_along_axis(s, (np.maximum(h, 1) - 1)[:, None], 1)
-        keep = np.less_equal(a, t, out=out)
-        b = wls(I, keep, px, fallback=b)[0]
-    return b, out
 
 
 def leverage(inv, px):
