@@ -1,27 +1,29 @@
 """Compiled per-pixel kernels of the robust methods (``trim``, the M-estimators, ``robust``).
 
-Each pixel is one row of the ``(n, k)`` layout of :class:`~._robust_common.Pixels`; a
-kernel runs the whole per-pixel computation -- order statistics, the trimmed or
-reweighted 3x3 normal equations, the IRLS iterations with their per-pixel stopping rule
--- in one pass over the row, where the numpy versions made a chain of ``(n, k)``
-temporaries per step. Pixels are independent (no reduction across pixels), so the
-results do not depend on the number of threads.
+A kernel runs, pixel by pixel, the whole per-pixel computation -- order statistics, the
+trimmed or reweighted 3x3 normal equations, the IRLS iterations with their per-pixel
+stopping rule -- in one pass over the pixel's observations, where the numpy versions made a chain of ``(n, k)``
+temporaries per step. Pixels are independent (no reduction across pixels). The kernels
+are compiled serial (no ``parallel=True``): numba's OpenMP threading layer aborts a
+process that forks after using it ("fork() called from a process already using GNU
+OpenMP"), and psbench's sweeps fork a child per chunk from workers that may have run a
+solve; psbench's runs use one thread anyway.
 
-The 3x3 normal equations are accumulated in float64 and solved by the adjugate (the
-same singularity test as :func:`~._robust_common.wls`); solutions are stored in
-float32.
+The 3x3 normal equations are accumulated in float32 (as the numpy versions' matrix
+products did) and solved in float64 by the adjugate (the singularity test of
+:func:`~._robust_common.wls`); solutions are stored in float32.
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["trim_rows", "irls_m", "HUBER", "CAUCHY", "TUKEY", "KINDS"]
 
 #: weight functions of :func:`irls_m`
 HUBER, CAUCHY, TUKEY = 0, 1, 2
 KINDS = {"huber": HUBER, "cauchy": CAUCHY, "tukey": TUKEY}
-#: pixels per work item of a parallel loop (scratch rows are allocated per item)
+#: pixels per block (scratch rows are allocated once per block)
 CHUNK = 512
 #: rows up to this length rank every observation by counting (k^2 / 2 comparisons),
 #: longer ones find the order statistics by bisection (~64 k comparisons)
@@ -226,7 +228,7 @@ def _gather(I, V, all_valid, p, Ip, Vp):
     return m
 
 
-@njit(cache=True, parallel=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def trim_rows(I, V, all_valid, O, St, P, dark, bright, steps, half, b_out, keep_out):
     """Rank-trimmed least squares and ``steps`` concentration steps for every pixel.
 
@@ -253,7 +255,7 @@ def trim_rows(I, V, all_valid, O, St, P, dark, bright, steps, half, b_out, keep_
         Solutions and the observations of each pixel's final solve.
     """
     k, n = I.shape
-    for c in prange((n + CHUNK - 1) // CHUNK):
+    for c in range((n + CHUNK - 1) // CHUNK):
         Ip = np.empty(k, dtype=np.float32)
         Vp = np.ones(k, dtype=np.bool_)
         s = np.empty(k, dtype=np.float32)
@@ -339,7 +341,7 @@ def _reweight_solve(I, vf, O, St, b, inv, kind, w, out):
     return _solve(I, w, O, St, out)
 
 
-@njit(cache=True, parallel=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def irls_m(I, V, all_valid, O, St, b0, c, kind, rescale, floor, conv_floor, tol, n_iter,
            b_out, w_out, inl_out, it_out, conv_out, sigma_out):
     """IRLS M-estimate of every pixel with a per-pixel MAD scale and early stop.
@@ -358,7 +360,7 @@ def irls_m(I, V, all_valid, O, St, b0, c, kind, rescale, floor, conv_floor, tol,
     """
     k, n = I.shape
     one = np.float32(1.0)
-    for ch in prange((n + CHUNK - 1) // CHUNK):
+    for ch in range((n + CHUNK - 1) // CHUNK):
         Ip = np.empty(k, dtype=np.float32)
         Vp = np.ones(k, dtype=np.bool_)
         s = np.empty(k, dtype=np.float32)
