@@ -21,7 +21,7 @@ that compiles the kernels) of the whole call, with
 the ratio to None's time of the same case, and the median process CPU time (on a
 busy shared machine the steadier figure: wall time there includes waiting for a
 core). BLAS and numba run single-threaded by default (``--blas-threads``,
-``--threads``), as psbench's runs do. The last table states, per acceptance target of
+``--threads``), as psbench's runs do (the robust methods' kernels are serial anyway). The last table states, per acceptance target of
 the robust methods, the measured value, the target and whether it is met.
 
 Usage::
@@ -266,8 +266,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--blas-threads", default="1", help="BLAS threads (0: library default)")
     ap.add_argument("--threads", type=int, default=1,
-                    help="numba threads of the compiled kernels (psbench runs pin 1; "
-                         "0: numba's default)")
+                    help="numba threads (psbench runs pin 1; 0: numba's default); the "
+                         "robust methods' kernels are serial, other compiled kernels use it")
     ap.add_argument("--th-study", action="store_true",
                     help="also print what the literal Th does on the DiLiGenT light subsets")
     a = ap.parse_args(argv)
