@@ -2,10 +2,12 @@
 
 Every IRLS-type robust method (l1, sbl, huber, cauchy, tukey) alternates: residuals of
 the current solution -> new per-observation weights -> per-pixel weighted least
-squares. :func:`irls` runs that loop on the object pixels in the (n, k) layout and keeps
-iterating only on the pixels that have not converged: a pixel converges when its
-solution moves by at most ``tol`` relative to its length; its result is frozen at
-that iteration, and the working arrays are compacted as pixels drop out.
+squares, and stops per pixel when its solution moves by at most ``tol`` relative to
+its length (its result is frozen at that iteration). :func:`irls` runs that loop with
+numpy on the object pixels in the (n, k) layout for any weight update (l1, sbl),
+compacting the working arrays as pixels drop out; the M-estimators, whose weights are
+a fixed function of the scaled residual, run it fused per pixel in a compiled kernel
+(:func:`._robust_kernel.irls_m`: one pass over a pixel's observations per iteration).
 
 The M-estimators (Huber 1964; Beaton & Tukey 1974; Holland & Welsch, "Robust
 regression using iteratively reweighted least-squares", Commun. Stat. 6, 1977) share
@@ -22,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base import Options, check_choice, check_int, check_number
-from ._robust_common import Pixels, concentrate, masked_median, residuals, wls
+from ._robust_common import Pixels, masked_median, wls
+from ._robust_kernel import KINDS, irls_m
 
 __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
@@ -243,53 +246,39 @@ def start_solution(px: Pixels, start: str):
         d = TrimOptions()
         if start == "trim":
             return trim_fit(px, d.drop_dark, d.drop_bright, d.refine)[0]
-        b = trim_fit(px, d.drop_dark, d.drop_bright, 0)[0]
-        return concentrate(px, b, px.m // 2 + 1, 2)[0]
+        return trim_fit(px, d.drop_dark, d.drop_bright, 2, half=True)[0]
     return px.start()
 
 
-def m_estimate(problem, options: MOptions, *, name, weight, c_default):
+def m_estimate(problem, options: MOptions, *, name, c_default):
     """IRLS M-estimate with a per-pixel robust scale (see the module docstring).
 
-    ``weight(u)`` maps standardised residuals u = r / (c sigma) (float32, modified in
-    place allowed) to weights in [0, 1]. The Fit carries the final weights and the
-    inlier flags |r| <= c * sigma.
+    ``name`` ("huber", "cauchy" or "tukey") selects the weight function w(u) of the
+    standardised residual u = r / (c sigma) in the compiled per-pixel loop
+    (:func:`._robust_kernel.irls_m`: Huber min(1, 1/|u|), Cauchy 1 / (1 + u^2), Tukey
+    max(0, 1 - u^2)^2). The Fit carries the final weights and the inlier flags
+    |r| <= c * sigma.
     """
     px = Pixels(problem)
     c = np.float32(options.c if options.c is not None else c_default)
-    floor = np.float32(1e-5 * px.scale)
-    all_valid = px.all_valid
-    rescale = options.scale == "update"
-
-    def update(r, V, st):
-        if rescale:
-            st["sigma"] = robust_scale(r, V, all_valid, floor)
-        r *= (np.float32(1) / (c * st["sigma"]))[:, None]   # u = r / (c sigma), in place
-        w = weight(r)
-        if not all_valid:
-            w *= V
-        return w
-
     b0 = start_solution(px, options.start)
-    # the scale of the start's residuals (fixed: MM-estimation; "update": re-estimated
-    # from the current residuals at every iteration)
-    sigma = np.empty(px.n, dtype=np.float32)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        sigma[sl] = robust_scale(residuals(sub, b0[sl]), sub.V, all_valid, floor)
-    b, w, its, conv, st = irls(px, b0, update, n_iter=options.n_iter, tol=options.tol,
-                               state={"sigma": sigma})
-    inlier = np.empty(px.I.shape, dtype=bool)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        r = residuals(sub, b[sl])
-        np.abs(r, out=r)
-        np.less_equal(r, (c * st["sigma"][sl])[:, None], out=inlier[sl])
-        if not all_valid:
-            inlier[sl] &= sub.V
+    n, k = px.n, px.k
+    b = np.empty((n, 3), dtype=np.float32)
+    w = np.empty((k, n), dtype=np.float32)
+    inlier = np.empty((k, n), dtype=bool)
+    its = np.empty(n, dtype=np.int32)
+    conv = np.empty(n, dtype=bool)
+    sigma = np.empty(n, dtype=np.float32)
+    if n:
+        # the scale of the start's residuals, held fixed (MM-estimation) or ("update")
+        # re-estimated from the current residuals at every iteration
+        irls_m(px.Ik, px.kernel_valid(), px.all_valid, px.outer_t, px.S32_t, b0, c,
+               KINDS[name], options.scale == "update", np.float32(1e-5 * px.scale),
+               np.float32(1e-6 * px.scale), np.float32(options.tol), int(options.n_iter),
+               b, w, inlier, its, conv, sigma)
     # w(0) = 1 for every estimator: the weights are already in [0, 1]
     return px.fit(name, b, valid=inlier, weights=w, iterations=its,
-                  converged=conv, n_iter=options.n_iter,
+                  converged=conv, n_iter=options.n_iter, kn=True,
                   info={"c": float(c), "start": options.start, "scale": options.scale,
-                        "scale_median": float(np.median(st["sigma"])) if px.n else 0.0})
+                        "scale_median": float(np.median(sigma)) if px.n else 0.0})
 

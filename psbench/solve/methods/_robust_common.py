@@ -1,10 +1,13 @@
 """Plumbing shared by the robust per-pixel methods (l1, sbl, rpca, M-estimators, trim).
 
-The robust methods work on the object pixels only, in an ``(n, k)`` layout (one row per
-object pixel, one column per image): per-pixel reductions and sorts then run along the
-contiguous last axis, and the per-pixel 3x3 weighted normal equations are two matrix
-products. :class:`Pixels` gathers a :class:`~psbench.solve.base.Problem` into that
-layout and scatters results back into a :class:`~psbench.solve.base.Fit`.
+The robust methods work on the object pixels only. The numpy ones (l1, sbl, rpca) use
+an ``(n, k)`` layout (one row per object pixel, one column per image): per-pixel
+reductions and sorts then run along the contiguous last axis, and the per-pixel 3x3
+weighted normal equations are two matrix products. The compiled kernels
+(:mod:`._robust_kernel`: trim, the M-estimators) read the ``(k, n)`` layout of the
+images themselves (no transposed copy). :class:`Pixels` gathers a
+:class:`~psbench.solve.base.Problem` into either layout on first use and scatters
+results back into a :class:`~psbench.solve.base.Fit`.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ import numpy as np
 
 from ..base import Fit
 
-__all__ = ["Pixels", "wls", "concentrate", "residuals", "sym3_inverse", "leverage", "masked_median", "weights_out"]
+__all__ = ["Pixels", "wls", "leverage", "masked_median", "weights_out"]
 
 _IU = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
 #: observations per block of :meth:`Pixels.blocks` (1 MB of float32)
@@ -56,26 +59,73 @@ class Pixels:
         flat = images.reshape(k, -1)
         vflat = np.asarray(problem.valid, dtype=bool).reshape(k, -1)
         n = flat.shape[1] if self.full else self.idx.size
-        self.I = np.empty((n, k), dtype=np.float32)
-        for lo in range(0, n, max(256, BLOCK_VALUES // max(k, 1))):   # in cache
-            hi = min(n, lo + max(256, BLOCK_VALUES // max(k, 1)))
-            self.I[lo:hi] = (flat[:, lo:hi] if self.full else flat[:, self.idx[lo:hi]]).T
-        self.all_valid = bool(vflat.all()) if self.full else bool(vflat[:, self.idx].all())
+        self._flat, self._n = flat, n
+        vk = vflat if self.full else vflat[:, self.idx]
+        self.all_valid = bool(vk.all())
+        self._Ik = self._I = self._V = None
         if self.all_valid:  # a read-only view: no (n, k) copy
-            self.V = np.broadcast_to(np.True_, (n, k))
+            self._V = np.broadcast_to(np.True_, (n, k))
+            self.Vk = None
             self.m = np.full(n, k)
         else:
-            self.V = np.ascontiguousarray(vflat.T if self.full else vflat[:, self.idx].T)
-            self.m = self.V.sum(axis=1)
+            self.Vk = np.ascontiguousarray(vk)
+            self.m = self.Vk.sum(axis=0)
         self.S = problem.S
         self.S32 = self.S.astype(np.float32)
         self.outer = _outer(self.S)
+        # (6, k) / (3, k) for the compiled kernels (contiguous along the images)
+        self.outer_t = np.ascontiguousarray(self.outer.T)
+        self.S32_t = np.ascontiguousarray(self.S32.T)
         self.scale = float(problem.scale) if problem.scale and problem.scale > 0 else 1.0
         self._problem = problem
 
     @property
     def n(self):
-        return self.I.shape[0]
+        return self._n
+
+    @property
+    def Ik(self):
+        """(k, n) float32 intensities (images x pixels: the layout of the compiled
+        kernels, which work on many pixels at once); a view when the object is the
+        whole image."""
+        if self._Ik is None:
+            self._Ik = (np.ascontiguousarray(self._flat, dtype=np.float32) if self.full
+                        else np.take(self._flat, self.idx, axis=1).astype(np.float32, copy=False))
+        return self._Ik
+
+    @property
+    def I(self):  # noqa: E743 - the (n, k) intensities, built on first use
+        if self._I is None:
+            k, n, flat = self.k, self._n, self._flat
+            I = np.empty((n, k), dtype=np.float32)
+            step = max(256, BLOCK_VALUES // max(k, 1))
+            for lo in range(0, n, step):   # block by block: in cache
+                hi = min(n, lo + step)
+                I[lo:hi] = (flat[:, lo:hi] if self.full else flat[:, self.idx[lo:hi]]).T
+            self._I = I
+        return self._I
+
+    @I.setter
+    def I(self, value):  # noqa: E743
+        self._I = value
+
+    @property
+    def V(self):
+        """(n, k) bool validity (a broadcast view when all valid), built on first use."""
+        if self._V is None:
+            self._V = np.ascontiguousarray(self.Vk.T)
+        return self._V
+
+    @V.setter
+    def V(self, value):
+        self._V = value
+
+    def kernel_valid(self):
+        """``V`` as the compiled kernels take it: the (k, n) bool array, or a (1, 1)
+        placeholder when every observation is valid (the kernels then ignore it)."""
+        if self.all_valid:
+            return np.ones((1, 1), dtype=bool)
+        return self.Vk
 
     def rows(self, sl):
         """A view of the pixels ``sl`` (a slice): ``I``, ``V`` and ``m`` restricted,
@@ -83,6 +133,8 @@ class Pixels:
         sub = object.__new__(type(self))
         sub.__dict__.update(self.__dict__)
         sub.I = self.I[sl]
+        sub._n = sub.I.shape[0]
+        sub._Ik = sub.Vk = None
         sub.m = self.m[sl]
         sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[sl])
         sub._start_rows = sl
@@ -93,6 +145,8 @@ class Pixels:
         sub = object.__new__(type(self))
         sub.__dict__.update(self.__dict__)
         sub.I = self.I[idx]
+        sub._n = sub.I.shape[0]
+        sub._Ik = sub.Vk = None
         sub.m = self.m[idx]
         sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[idx])
         sub._start_rows = idx
@@ -125,9 +179,16 @@ class Pixels:
             out[self.idx] = values
         return out.reshape((self.H, self.W) + values.shape[1:])
 
-    def stack(self, values, fill):
-        """(n, k) per-observation values -> (k, H, W), ``fill`` off the object."""
+    def stack(self, values, fill, *, kn=False):
+        """(n, k) per-observation values (``kn``: (k, n)) -> (k, H, W), ``fill`` off
+        the object."""
         values = np.asarray(values)
+        if kn:
+            if self.full:
+                return values.reshape(self.k, self.H, self.W)
+            out = np.full((self.k, self.H * self.W), fill, dtype=values.dtype)
+            out[:, self.idx] = values
+            return out.reshape(self.k, self.H, self.W)
         out = np.empty((self.k, self.H * self.W), dtype=values.dtype)
         if not self.full:
             out[:] = fill
@@ -139,8 +200,9 @@ class Pixels:
         return out.reshape(self.k, self.H, self.W)
 
     def fit(self, name, b, *, valid=None, weights=None, iterations=0, converged=True,
-            n_iter=None, info=None):
-        """Assemble a :class:`Fit` from per-pixel results; non-finite solutions are
+            n_iter=None, info=None, kn=False):
+        """Assemble a :class:`Fit` from per-pixel results (``valid`` / ``weights``
+        (n, k), or (k, n) with ``kn``); non-finite solutions are
         replaced by the masked least-squares start (and flagged not converged), and
         pixels that did not converge are counted in ``info`` and warned about."""
         info = dict(info or {})
@@ -173,40 +235,15 @@ class Pixels:
                   if np.ndim(iterations) > 0 else int(iterations))
         valid_out = None
         if valid is not None:
-            valid_out = self.stack(np.asarray(valid, dtype=bool), fill=True)
+            valid_out = self.stack(np.asarray(valid, dtype=bool), fill=True, kn=kn)
         w_out = None
         if weights is not None:
-            w_out = self.stack(np.asarray(weights, dtype=np.float32), fill=np.float32(0))
+            w_out = self.stack(np.asarray(weights, dtype=np.float32), fill=np.float32(0), kn=kn)
         return Fit(b=self.image(b, fill=0, dtype=np.float32), valid=valid_out, weights=w_out,
                    iterations=it_out, converged=conv_out, info=info)
 
 
 # ---------------------------------------------------------------------- linear algebra
-def sym3_inverse(a):
-    """Cofactors and determinant of symmetric 3x3 matrices given as (n, 6) rows.
-
-    Returns
-    -------
-    cof : (n, 6) float32
-        Unique entries of the adjugate (same order as ``a``).
-    det : (n,) float32
-    ok : (n,) bool
-        Numerically non-singular (|det| > 1e-6 trace^3).
-    """
-    a00, a01, a02, a11, a12, a22 = a.T
-    cof = np.empty_like(a)
-    cof[:, 0] = a11 * a22 - a12 * a12
-    cof[:, 1] = a02 * a12 - a01 * a22
-    cof[:, 2] = a01 * a12 - a02 * a11
-    cof[:, 3] = a00 * a22 - a02 * a02
-    cof[:, 4] = a01 * a02 - a00 * a12
-    cof[:, 5] = a00 * a11 - a01 * a01
-    det = a00 * cof[:, 0] + a01 * cof[:, 1] + a02 * cof[:, 2]
-    tr = a00 + a11 + a22
-    ok = np.abs(det) > 1e-6 * tr * tr * tr
-    return cof, det, ok
-
-
 def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
     """Per-pixel weighted least squares in the (n, k) layout.
 
@@ -267,44 +304,6 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
         inv *= inv_det[:, None]
         return b, ok, inv
     return b, ok
-
-
-def residuals(px: Pixels, b):
-    """(n, k) float32 residuals I - S b of the pixels of ``px`` (a fresh array)."""
-    r = np.matmul(b, px.S32.T)
-    return np.subtract(px.I, r, out=r)
-
-
-def concentrate(px: Pixels, b, h, steps):
-    """Least-trimmed-squares concentration steps: keep, per pixel, the ``h`` (n,) valid
-    observations of smallest |residual| of ``b`` (ties kept) and solve again, ``steps``
-    times (Rousseeuw & Van Driessen 2006: a step cannot increase the sum of the h
-    smallest squared residuals). Returns (b, keep (n, k) bool); block by block."""
-    b = np.array(b, dtype=np.float32, copy=True)
-    keep = np.empty(px.I.shape, dtype=bool)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        b[sl], keep[sl] = _concentrate(sub, b[sl], np.asarray(h)[sl], steps, keep[sl])
-    return b, keep
-
-
-def _concentrate(px, b, h, steps, out):
-    I = px.I
-    const = px.all_valid and h.size and np.all(h == h[0])
-    for _ in range(steps):
-        a = np.matmul(b, px.S32.T)
-        np.subtract(I, a, out=a)
-        np.abs(a, out=a)
-        if not px.all_valid:
-            a[~px.V] = np.inf
-        s = np.sort(a, axis=1)
-        if const:
-            t = s[:, h[0] - 1:h[0]]
-        else:
-            t = np.take_along_axis(s, (np.maximum(h, 1) - 1)[:, None], 1)
-        keep = np.less_equal(a, t, out=out)
-        b = wls(I, keep, px, fallback=b)[0]
-    return b, out
 
 
 def leverage(inv, px):

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ...registry import Method
 from ._irls import MOptions, m_estimate
 
@@ -31,16 +29,10 @@ class CauchyOptions(MOptions):
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 
-def _weight(u):
-    np.multiply(u, u, out=u)
-    u += np.float32(1)
-    return np.divide(np.float32(1), u, out=u)
-
-
 def cauchy(problem, options: CauchyOptions):
     """Cauchy M-estimate of rho * n per pixel; Fit.weights are the final IRLS weights,
     Fit.valid the observations with |r| <= c sigma (weight >= 1/2)."""
-    return m_estimate(problem, options, name="cauchy", weight=_weight, c_default=C_DEFAULT)
+    return m_estimate(problem, options, name="cauchy", c_default=C_DEFAULT)
 
 
 METHOD = Method(name="cauchy", func=cauchy, options=CauchyOptions,

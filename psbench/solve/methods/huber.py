@@ -14,8 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ...registry import Method
 from ._irls import MOptions, m_estimate
 
@@ -32,16 +30,10 @@ class HuberOptions(MOptions):
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 
-def _weight(u):
-    a = np.abs(u)
-    np.maximum(a, np.float32(1), out=a)
-    return np.divide(np.float32(1), a, out=a)
-
-
 def huber(problem, options: HuberOptions):
     """Huber M-estimate of rho * n per pixel; Fit.weights are the final IRLS weights,
     Fit.valid the observations with |r| <= c sigma."""
-    return m_estimate(problem, options, name="huber", weight=_weight, c_default=C_DEFAULT)
+    return m_estimate(problem, options, name="huber", c_default=C_DEFAULT)
 
 
 METHOD = Method(name="huber", func=huber, options=HuberOptions,

@@ -70,6 +70,7 @@ import numpy as np
 from ...registry import Method
 from ..base import Options, check_choice, check_int, check_number
 from ._robust_common import Pixels
+from . import trim as trim_mod
 from .trim import TrimOptions, trim_fit
 
 __all__ = ["RobustOptions", "robust", "METHOD", "TS_SETTINGS"]
@@ -163,16 +164,19 @@ def robust(problem, options: RobustOptions):
     info = {"model": options.model, "c": options.c}
     if options.model == "lambert" or px.k < MIN_TS_IMAGES or px.n == 0:
         info["ts_fraction"] = 0.0
-        return px.fit("robust", b_l, valid=keep, iterations=0, converged=True, info=info)
+        return px.fit("robust", b_l, valid=keep, iterations=0, converged=True, info=info,
+                      kn=True)
     from .tsfit import TsfitOptions, tsfit
 
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, \
+            trim_mod.reuse(problem, trim_mod.result(px, b_l, keep)):
+        # the Torrance-Sparrow step starts from ``trim``: the fit above, not a second one
         warnings.simplefilter("always", RuntimeWarning)
         ts = tsfit(problem, TsfitOptions(**TS_SETTINGS, lm_max_iter=options.n_iter,
                                          lm_tol=options.tol))
     sel = (slice(None),) if px.full else (px.idx,)
     b_t = np.asarray(ts.b, dtype=np.float32).reshape(-1, 3)[sel]
-    w_t = np.asarray(ts.weights, dtype=np.float32).reshape(px.k, -1)[(slice(None),) + sel].T
+    w_t = np.asarray(ts.weights, dtype=np.float32).reshape(px.k, -1)[(slice(None),) + sel]
     rho_s, m = ts.info.get("rho_s", 0.0), ts.info.get("m", 1.0)
     if np.ndim(rho_s):
         rho_s = np.asarray(rho_s, dtype=np.float32).reshape(-1)[sel]
@@ -209,7 +213,7 @@ def robust(problem, options: RobustOptions):
     del sq_t, sq_l
     use_t = loss_t <= loss_l
     b = np.where(use_t[:, None], b_t, b_l)
-    weights = np.where(use_t[:, None], w_t, keep.astype(np.float32))
+    weights = np.where(use_t[None, :], w_t, keep.astype(np.float32))   # (k, n)
     conv_t = np.asarray(ts.converged, dtype=bool)
     conv_t = conv_t.reshape(-1)[sel] if conv_t.ndim else np.full(px.n, bool(conv_t))
     it_t = np.asarray(ts.iterations).reshape(-1)[sel] if np.ndim(ts.iterations) else \
@@ -223,7 +227,7 @@ def robust(problem, options: RobustOptions):
     for msg in msgs:
         warnings.warn(msg, RuntimeWarning, stacklevel=2)
     return px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
-                  converged=conv, n_iter=options.n_iter, info=info)
+                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
 
 
 METHOD = Method(name="robust", func=robust, options=RobustOptions,

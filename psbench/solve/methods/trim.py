@@ -38,15 +38,18 @@ Regression and Outlier Detection", Wiley, 1987; P. J. Rousseeuw and K. Van Dries
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 from dataclasses import dataclass
 
 import numpy as np
 
 from ...registry import Method
 from ..base import Options, check_int, check_number
-from ._robust_common import Pixels, _concentrate, wls
+from ._robust_common import Pixels
+from ._robust_kernel import trim_rows
 
-__all__ = ["TrimOptions", "trim", "trim_valid", "trim_fit", "METHOD"]
+__all__ = ["TrimOptions", "trim", "trim_valid", "trim_fit", "result", "reuse", "METHOD"]
 
 
 @dataclass
@@ -85,96 +88,55 @@ class TrimOptions(Options):
         check_int(self.refine, "refine", lo=0)
 
 
-def _counts(m, dark, bright):
-    """Per-pixel numbers of dropped dark / bright observations: fractions of the m - 3
-    redundant ones (at least three are always kept)."""
-    red = np.maximum(np.asarray(m) - 3, 0)
-    # rounded, not floored: with 5-6 lights 1 + 1 are dropped (a cast shadow and a
-    # highlight) where floor dropped none; the sum never exceeds m - 3
-    return (np.floor(dark * red + 0.5).astype(np.int64),
-            np.floor(bright * red + 0.5).astype(np.int64))
-
-
 def trim_valid(px: Pixels, dark: float, bright: float) -> np.ndarray:
-    """Observations kept by the rank trimming, (n, k) bool (see :class:`TrimOptions`)."""
-    return _trim_keep(px, dark, bright)[0]
+    """Observations kept by the rank trimming, (k, n) bool (see :class:`TrimOptions`)."""
+    return trim_fit(px, dark, bright, 0)[1]
 
 
-def _trim_keep(px: Pixels, dark: float, bright: float):
-    """(keep (n, k) bool, kept count (n,) int) of the rank trimming."""
-    I, V = px.I, px.V
-    n, k = I.shape
-    if px.all_valid:
-        nd, nb = (int(v) for v in _counts(k, dark, bright))
-        h = np.full(n, k - nd - nb)
-        if nd == 0 and nb == 0:
-            return np.ones((n, k), dtype=bool), h
-        s = np.sort(I, axis=1)
-        if nd and nb:
-            keep = I > s[:, nd - 1:nd]
-            keep &= I < s[:, k - nb:k - nb + 1]
-        elif nd:
-            keep = I > s[:, nd - 1:nd]
-        else:
-            keep = I < s[:, k - nb:k - nb + 1]
-        # only a tie with a dropped value can keep fewer than k - nd - nb
-        tied = np.zeros(n, dtype=bool)
-        if nd:
-            tied |= s[:, nd - 1] == s[:, nd]
-        if nb:
-            tied |= s[:, k - nb - 1] == s[:, k - nb]
-        rows = np.flatnonzero(tied)
-        if rows.size:
-            h[rows] = np.count_nonzero(keep[rows], axis=1)
-        short = rows[h[rows] < 3]
-    else:
-        m = px.m
-        nd, nb = _counts(m, dark, bright)
-        s = np.where(V, I, np.float32(np.inf))
-        s.sort(axis=1)
-        lo = np.take_along_axis(s, np.maximum(nd - 1, 0)[:, None], 1)[:, 0]
-        lo[nd == 0] = -np.inf
-        hi = np.take_along_axis(s, np.minimum(m - nb, k - 1)[:, None], 1)[:, 0]
-        hi[nb == 0] = np.inf
-        keep = V & (I > lo[:, None]) & (I < hi[:, None])
-        h = np.count_nonzero(keep, axis=1)
-        # ties with a dropped value may leave fewer than three
-        short = np.flatnonzero(h < np.minimum(3, m))
-    if short.size:
-        keep[short] = _rank_window(I[short], V[short], px.m[short], dark, bright)
-        h[short] = np.count_nonzero(keep[short], axis=1)
-    return keep, h
+def trim_fit(px: Pixels, dark: float, bright: float, refine: int, *, half: bool = False):
+    """Rank-trimmed least squares followed by ``refine`` residual-ranked passes (one
+    compiled pass per pixel: :func:`._robust_kernel.trim_rows`).
 
-
-def _rank_window(I, V, m, dark, bright):
-    """Exact rank window (ties broken by image order) for a few rows."""
-    nd, nb = _counts(m, dark, bright)
-    order = np.argsort(np.where(V, I, np.float32(np.inf)), axis=1, kind="stable")
-    rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.broadcast_to(np.arange(I.shape[1]), order.shape), 1)
-    return V & (rank >= nd[:, None]) & (rank < (m - nb)[:, None])
-
-
-def trim_fit(px: Pixels, dark: float, bright: float, refine: int):
-    """Rank-trimmed least squares followed by ``refine`` residual-ranked passes, block
-    by block of pixels.
+    ``half``: the passes keep floor(m / 2) + 1 observations instead of as many as the
+    trimming (least-trimmed-squares concentration steps of ~50 % breakdown).
 
     Returns
     -------
     b : (n, 3) float32
-    keep : (n, k) bool
-        Observations of the final solve.
+    keep : (k, n) bool
+        Observations of the final solve (images x pixels).
     """
     b = np.empty((px.n, 3), dtype=np.float32)
-    keep = np.empty(px.I.shape, dtype=bool)
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        kb, h = _trim_keep(sub, dark, bright)
-        bb = wls(sub.I, kb, sub)[0]
-        if refine:
-            bb, kb = _concentrate(sub, bb, h, refine, kb)
-        b[sl], keep[sl] = bb, kb
+    keep = np.empty((px.k, px.n), dtype=bool)
+    if px.n:
+        P = np.linalg.pinv(px.S).astype(np.float32)
+        trim_rows(px.Ik, px.kernel_valid(), px.all_valid, px.outer_t, px.S32_t, P,
+                  float(dark), float(bright), int(refine), bool(half), b, keep)
     return b, keep
+
+
+def result(px: Pixels, b, keep):
+    """The :class:`~psbench.solve.base.Fit` of ``trim`` from :func:`trim_fit`'s output."""
+    n_valid = px.m.sum()
+    return px.fit("trim", b, valid=keep, iterations=0, converged=True, kn=True,
+                  info={"kept_fraction": float(np.count_nonzero(keep) / max(n_valid, 1))})
+
+
+#: (problem, Fit) that :func:`trim` returns for that problem with the default options
+_REUSE = contextvars.ContextVar("psbench_trim_reuse", default=None)
+
+
+@contextlib.contextmanager
+def reuse(problem, fit):
+    """Within the block, ``trim(problem, TrimOptions())`` returns ``fit`` (the caller's
+    own trim of the same problem with the default options) instead of computing it
+    again: ``robust`` starts its Torrance-Sparrow step, which calls ``trim`` for its
+    start, from the trimmed fit it has just computed."""
+    token = _REUSE.set((problem, fit))
+    try:
+        yield
+    finally:
+        _REUSE.reset(token)
 
 
 def trim(problem, options: TrimOptions):
@@ -183,10 +145,12 @@ def trim(problem, options: TrimOptions):
     Returns a :class:`~psbench.solve.base.Fit` whose ``valid`` holds the observations
     of the final solve (inlier flags); closed form: 0 iterations, converged.
     """
+    done = _REUSE.get()
+    if done is not None and done[0] is problem and options == TrimOptions():
+        return done[1]
     px = Pixels(problem)
     b, keep = trim_fit(px, options.drop_dark, options.drop_bright, options.refine)
-    return px.fit("trim", b, valid=keep, iterations=0, converged=True,
-                  info={"kept_fraction": float(keep.sum() / max(px.V.sum(), 1))})
+    return result(px, b, keep)
 
 
 METHOD = Method(

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ...registry import Method
 from ._irls import MOptions, m_estimate
 
@@ -32,17 +30,10 @@ class TukeyOptions(MOptions):
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 
-def _weight(u):
-    np.multiply(u, u, out=u)
-    np.subtract(np.float32(1), u, out=u)
-    np.maximum(u, np.float32(0), out=u)
-    return np.multiply(u, u, out=u)
-
-
 def tukey(problem, options: TukeyOptions):
     """Tukey biweight M-estimate of rho * n per pixel; Fit.weights are the final IRLS
     weights, Fit.valid the observations with |r| < c sigma (weight > 0)."""
-    return m_estimate(problem, options, name="tukey", weight=_weight, c_default=C_DEFAULT)
+    return m_estimate(problem, options, name="tukey", c_default=C_DEFAULT)
 
 
 METHOD = Method(name="tukey", func=tukey, options=TukeyOptions,

@@ -24,15 +24,35 @@ def test_huber_on_sparse_corruptions():
         assert e < 0.1 * l2
 
 
-def test_weight_functions():
-    u = np.array([0.0, 0.5, 0.99, 1.0, 2.0, 10.0], dtype=np.float32)
-    h = huber._weight(u.copy())
-    np.testing.assert_allclose(h, [1, 1, 1, 1, 0.5, 0.1], rtol=1e-6)
-    c = cauchy._weight(u.copy())
-    np.testing.assert_allclose(c, 1 / (1 + u * u), rtol=1e-6)
-    t = tukey._weight(u.copy())
-    np.testing.assert_allclose(t, np.where(u < 1, (1 - u * u) ** 2, 0), atol=1e-6)
-    assert (np.diff(c) < 0).all() and t[0] == 1 and (t[3:] == 0).all()
+@pytest.mark.parametrize("kind", ["huber", "cauchy", "tukey"])
+def test_weight_functions(kind):
+    """The first IRLS weights of the compiled loop are w(u) of u = r / (c sigma),
+    sigma = 1.4826 median |r| of the start."""
+    from psbench.solve.methods._robust_kernel import KINDS, irls_m
+
+    rng = np.random.default_rng(0)
+    k = 16
+    S = rng.normal(size=(k, 3))
+    S[:, 2] = np.abs(S[:, 2]) + 1
+    b0 = np.array([[0.1, -0.2, 1.0]], dtype=np.float32)
+    r = np.linspace(-3, 3, k).astype(np.float32)
+    I = np.ascontiguousarray((S @ b0[0]).astype(np.float32) + r)[:, None]
+    O = np.stack([S[:, 0] * S[:, 0], S[:, 0] * S[:, 1], S[:, 0] * S[:, 2], S[:, 1] * S[:, 1],
+                  S[:, 1] * S[:, 2], S[:, 2] * S[:, 2]]).astype(np.float32)
+    St = np.ascontiguousarray(S.T, dtype=np.float32)
+    out = (np.empty((1, 3), np.float32), np.empty((k, 1), np.float32), np.empty((k, 1), bool),
+           np.empty(1, np.int32), np.empty(1, bool), np.empty(1, np.float32))
+    c = 1.5
+    irls_m(I, np.ones((1, 1), bool), True, O, St, b0, np.float32(c), KINDS[kind], False,
+           np.float32(1e-6), np.float32(1e-6), np.float32(1e-3), 1, *out)
+    w, sigma = out[1][:, 0], out[5][0]
+    r_now = I[:, 0] - (S @ b0[0]).astype(np.float32)
+    assert sigma == pytest.approx(1.4826 * np.median(np.abs(r_now)), rel=1e-5)
+    u = r_now / (c * sigma)
+    want = {"huber": np.minimum(1, 1 / np.abs(u)), "cauchy": 1 / (1 + u * u),
+            "tukey": np.maximum(1 - u * u, 0) ** 2}[kind]
+    np.testing.assert_allclose(w, want, rtol=1e-5, atol=1e-6)
+    assert w.max() <= 1 and (kind != "tukey" or (w[np.abs(u) >= 1] == 0).all())
 
 
 @pytest.mark.parametrize("start", ["lts", "trim", "ls"])
