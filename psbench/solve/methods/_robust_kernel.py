@@ -3,11 +3,10 @@
 A kernel runs, pixel by pixel, the whole per-pixel computation -- order statistics, the
 trimmed or reweighted 3x3 normal equations, the IRLS iterations with their per-pixel
 stopping rule -- in one pass over the pixel's observations, where the numpy versions made a chain of ``(n, k)``
-temporaries per step. Pixels are independent (no reduction across pixels). The kernels
-are compiled serial (no ``parallel=True``): numba's OpenMP threading layer aborts a
-process that forks after using it ("fork() called from a process already using GNU
-OpenMP"), and psbench's sweeps fork a child per chunk from workers that may have run a
-solve; psbench's runs use one thread anyway.
+temporaries per step. Pixels are independent (no reduction across pixels), so blocks
+of pixels run on numba's threads (psbench selects numba's fork-safe threading layer,
+:mod:`psbench._numba_setup`; psbench's runs pin one thread) and the results do not
+depend on the thread count.
 
 The 3x3 normal equations are accumulated in float32 (as the numpy versions' matrix
 products did) and solved in float64 by the adjugate (the singularity test of
@@ -16,7 +15,7 @@ products did) and solved in float64 by the adjugate (the singularity test of
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["trim_rows", "irls_m", "HUBER", "CAUCHY", "TUKEY", "KINDS"]
 
@@ -228,7 +227,7 @@ def _gather(I, V, all_valid, p, Ip, Vp):
     return m
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def trim_rows(I, V, all_valid, O, St, P, dark, bright, steps, half, b_out, keep_out):
     """Rank-trimmed least squares and ``steps`` concentration steps for every pixel.
 
@@ -255,7 +254,7 @@ def trim_rows(I, V, all_valid, O, St, P, dark, bright, steps, half, b_out, keep_
         Solutions and the observations of each pixel's final solve.
     """
     k, n = I.shape
-    for c in range((n + CHUNK - 1) // CHUNK):
+    for c in prange((n + CHUNK - 1) // CHUNK):  # blocks on numba's threads
         Ip = np.empty(k, dtype=np.float32)
         Vp = np.ones(k, dtype=np.bool_)
         s = np.empty(k, dtype=np.float32)
@@ -341,7 +340,7 @@ def _reweight_solve(I, vf, O, St, b, inv, kind, w, out):
     return _solve(I, w, O, St, out)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def irls_m(I, V, all_valid, O, St, b0, c, kind, rescale, floor, conv_floor, tol, n_iter,
            b_out, w_out, inl_out, it_out, conv_out, sigma_out):
     """IRLS M-estimate of every pixel with a per-pixel MAD scale and early stop.
@@ -360,7 +359,7 @@ def irls_m(I, V, all_valid, O, St, b0, c, kind, rescale, floor, conv_floor, tol,
     """
     k, n = I.shape
     one = np.float32(1.0)
-    for ch in range((n + CHUNK - 1) // CHUNK):
+    for ch in prange((n + CHUNK - 1) // CHUNK):  # blocks on numba's threads
         Ip = np.empty(k, dtype=np.float32)
         Vp = np.ones(k, dtype=np.bool_)
         s = np.empty(k, dtype=np.float32)
