@@ -6,11 +6,16 @@ operations in the same order as the passes they replace (one add of the lift, a
 running maximum, two adds and a comparison), so the maps are bit-identical to
 the numpy formulation, and independent of the thread count (every output element
 depends on its own column or pixel only).
+
+They run on one thread (``parallel=False``): each is a few milliseconds of
+memory-bound work between two multi-threaded ``cv2.warpAffine`` calls, and a second
+thread pool (numba's) waking between OpenCV's costs more than it gains -- measured
+~3x slower per light at 512 x 512 on two loaded cores, no gain at 2048 x 2048.
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["lift_running_max", "above"]
 
@@ -18,7 +23,7 @@ __all__ = ["lift_running_max", "above"]
 _BLOCK = 256
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, nogil=True)
 def lift_running_max(g, lift):
     """In place: ``g[w] += lift[w]``, then the running maximum of ``g`` along axis 0.
 
@@ -29,7 +34,7 @@ def lift_running_max(g, lift):
     """
     L, n = g.shape
     nb = (n + _BLOCK - 1) // _BLOCK
-    for blk in prange(nb):
+    for blk in range(nb):
         lo = blk * _BLOCK
         hi = min(n, lo + _BLOCK)
         top = np.empty(hi - lo, g.dtype)  # running max of the block (keeps the loop SIMD)
@@ -47,11 +52,11 @@ def lift_running_max(g, lift):
     return g
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, nogil=True)
 def above(horizon, hb, rowpart, colpart, out):
     """``out = horizon > (hb + rowpart[:, None]) + colpart[None, :]``, (H, W) bool."""
     H, W = horizon.shape
-    for r in prange(H):
+    for r in range(H):
         rp = rowpart[r]
         for c in range(W):
             out[r, c] = horizon[r, c] > (hb[r, c] + rp) + colpart[c]
