@@ -88,3 +88,28 @@ def test_weighted_masks_do_not_depend_on_numba_threads():
     finally:
         numba.set_num_threads(n0)
     assert np.array_equal(one, many)
+
+
+def test_mask_kernels_match_the_matrix_products():
+    from psbench.solve.masks import _shared
+
+    rng = np.random.default_rng(11)
+    k, n = 16, 4000
+    S = rng.normal(size=(k, 3)).astype(np.float32)
+    b = rng.normal(size=(n, 3)).astype(np.float32)
+    images = rng.random((k, n), dtype=np.float32)
+
+    class Ctx:
+        cache = {}
+        S32 = S
+
+    r = _shared.lambert_residual(Ctx, images, b)
+    np.testing.assert_allclose(r, images - S @ b.T, rtol=0, atol=1e-5)
+    nrm = b / np.linalg.norm(b, axis=1, keepdims=True)
+    d = rng.normal(size=(k, 3))
+    d[:, 2] = np.abs(d[:, 2])
+    got = _shared.reflection_valid(nrm, d, 25.0)
+    cos = (_shared.bisectors(d).astype(np.float32) @ nrm.T)
+    want = cos <= np.float32(np.cos(np.radians(25.0)))
+    sure = np.abs(cos - np.float32(np.cos(np.radians(25.0)))) > 1e-6  # off the threshold
+    assert got.shape == (k, n) and np.array_equal(got[sure], want[sure])
