@@ -5,11 +5,16 @@ the light: the per-pixel counts of valid observations, a stable sort of each pix
 residual magnitudes, and the fill of the missing observations. Same results as
 ``valid.sum(axis=0)``, ``np.argsort(r, axis=0, kind="stable")`` and the vectorised
 fill; every column is handled on its own, so any thread count gives the same result.
+
+They run on one thread (no ``prange``): psbench's harness forks its run processes, and
+a process forked from one that has used numba's OpenMP threading layer (GNU OpenMP
+here) aborts at its first parallel region ("fork() called from a process already using
+GNU OpenMP"). Whether to enable threads is a project-wide choice of threading layer.
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["short_columns", "order", "fill"]
 
@@ -17,10 +22,10 @@ __all__ = ["short_columns", "order", "fill"]
 _INSERTION_MAX = 32
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, nogil=True)
 def _counts(valid, out):
     k, n = valid.shape
-    for j in prange(n):
+    for j in range(n):
         c = 0
         for i in range(k):
             c += valid[i, j]
@@ -42,7 +47,7 @@ def order(r, dtype):
     return _stable_order(r, np.empty(r.shape, dtype=dtype))
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, nogil=True)
 def _stable_order(r, out):
     """``out[:, j] = argsort(r[:, j], kind="stable")`` for every column (NaN last).
 
@@ -52,7 +57,7 @@ def _stable_order(r, out):
     out : (k, n) integer
     """
     k, n = r.shape
-    for j in prange(n):
+    for j in range(n):
         idx = np.empty(k, dtype=np.int64)
         key = np.empty(k, dtype=r.dtype)
         for i in range(k):  # insertion sort: moves only strictly greater keys (stable)
@@ -69,12 +74,12 @@ def _stable_order(r, out):
     return out
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, nogil=True)
 def fill(valid, short, counts, order):
     """In place: for column ``short[s]`` of ``valid`` (k, n), set the observations
     ``order[:, s]`` (best first) until three are True; ``counts[s]`` are its counts."""
     k = valid.shape[0]
-    for s in prange(short.size):
+    for s in range(short.size):
         j = short[s]
         c = counts[s]
         for t in range(k):
