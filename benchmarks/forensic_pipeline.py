@@ -228,7 +228,8 @@ def main(argv=None):
           f"{'MET' if peak <= TARGET_GIB else 'NOT MET'}")
     if load1[0] > cores or load0[0] > cores:
         print(f"  note: the load exceeded the {cores} cores; wall times are inflated "
-              f"(the CPU times are a bound for an idle machine)")
+              f"(most stages run on one thread, so on an idle machine their wall time is about "
+              f"their CPU time)")
     if cur[-1].get("profile"):
         print("CPU profile of the last run's pipeline (own CPU seconds per function):")
         print(cur[-1]["profile"])
