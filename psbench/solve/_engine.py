@@ -35,6 +35,7 @@ import warnings
 import numpy as np
 
 from .._checks import PsbenchError
+from . import _complete_kernel as _ck
 from . import kernel
 from ._result import Timer, finish, mean_error
 from ._specs import check_counts, mask_specs
@@ -404,9 +405,7 @@ class _Completer:
         self.S32 = self.S.astype(np.float32)
         self.have = np.zeros(self.flat.shape[1], dtype=bool)
         self.order = None
-        # counts and light indices wide enough for any light count (uint8 up to 255
-        # lights; a wider type beyond, where 256 valid observations would wrap to 0)
-        self.count_type = np.min_scalar_type(k)
+        # light indices wide enough for any light count
         self.index_type = np.min_scalar_type(max(k - 1, 0))
 
     def _ensure(self, cols):
@@ -418,29 +417,15 @@ class _Completer:
         sub = self.flat[:, miss]
         r = sub - self.S32 @ (self.P @ sub)
         np.abs(r, out=r)
-        self.order[:, miss] = np.argsort(r, axis=0, kind="stable").astype(self.index_type)
+        self.order[:, miss] = _ck.order(r, self.index_type)
         self.have[miss] = True
 
     def __call__(self, valid, cols=None):
         """Complete ``valid`` (k, n) in place where short; ``cols`` maps its columns to
         pixel indices (None: all pixels). Returns ``valid``."""
-        cnt = valid.sum(axis=0, dtype=self.count_type)
-        short = np.flatnonzero(cnt < 3)
+        short, cnt = _ck.short_columns(valid)
         if short.size == 0:
             return valid
         pix = short if cols is None else cols[short]
         self._ensure(pix)
-        o = self.order[:, pix]
-        v = valid[:, short]
-        c = cnt[short]
-        ar = np.arange(short.size)
-        for j in range(self.k):
-            need = c < 3
-            if not need.any():
-                break
-            obs = o[j]
-            add = need & ~v[obs, ar]
-            v[obs[add], ar[add]] = True
-            c += add
-        valid[:, short] = v
-        return valid
+        return _ck.fill(valid, short, cnt, self.order[:, pix])

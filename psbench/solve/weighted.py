@@ -48,21 +48,6 @@ def disk(radius, size=None):
     return (((x - c) ** 2 + (y - c) ** 2) <= radius * radius + 1e-9).astype(np.uint8)
 
 
-def _gauss_smooth(img, sigma, size):
-    import cv2
-    if sigma <= 0:
-        return img
-    return cv2.GaussianBlur(img, (size, size), sigmaX=float(sigma), sigmaY=float(sigma),
-                            borderType=cv2.BORDER_REPLICATE)
-
-
-def _dilate(img, se):
-    import cv2
-    if se.size <= 1:
-        return img
-    return cv2.dilate(img, se, borderType=cv2.BORDER_REPLICATE)
-
-
 def weighted_masks(images, S, b, valid, *, sigma_min, dilate_radius=7, smooth_sigma=3.0,
                    kernel_size=15, out=None):
     """Weights of the weighted-mask PS (Eq. 3.19 and steps 4-5).
@@ -87,22 +72,33 @@ def weighted_masks(images, S, b, valid, *, sigma_min, dilate_radius=7, smooth_si
     weights : (k, H, W) float32
         Inverse variances normalised by sigma_min^2 (1 = fully trusted).
     """
+    import cv2
+
+    from ._weighted_kernel import inverse_variances
+
     k, H, W = images.shape
     S = np.asarray(S, dtype=np.float32)
     size = int(kernel_size)
-    se = disk(min(int(dilate_radius), (size - 1) // 2), size) if dilate_radius > 0 else np.ones((1, 1), np.uint8)
+    se = disk(min(int(dilate_radius), (size - 1) // 2), size) if dilate_radius > 0 else None
     weights = np.empty((k, H, W), dtype=np.float32) if out is None else out
-    bf = b.reshape(-1, 3)
-    smin = np.float32(sigma_min)
+    # Eq. 3.19 scaled by 1/sigma_min, inverted in the same pass: 1/sigma^2 (1 = trusted)
+    inverse_variances(np.ascontiguousarray(images, dtype=np.float32),
+                      np.ascontiguousarray(b, dtype=np.float32), S,
+                      np.ascontiguousarray(valid, dtype=bool), np.float32(sigma_min), weights)
+    tmp = np.empty((H, W), dtype=np.float32)
     for i in range(k):
-        L = (bf @ S[i]).reshape(H, W)
-        r = np.abs(images[i] - L)
-        # Eq. 3.19 (scaled by 1/sigma_min): masked and |r| >= sigma_min -> |r|, else sigma_min
-        sig = np.where(~valid[i] & (r >= smin), r / smin, np.float32(1.0)).astype(np.float32)
-        var = sig * sig
-        var = _dilate(var, se)
-        w = np.float32(1.0) / var
-        weights[i] = _gauss_smooth(w, smooth_sigma, size)
+        w = weights[i]
+        if se is not None:
+            # dilating sigma^2 then inverting == eroding 1/sigma^2 (1/x is monotone and
+            # correctly rounded, so 1/max = min of 1/ exactly)
+            cv2.erode(w, se, dst=tmp, borderType=cv2.BORDER_REPLICATE)
+            w = tmp
+        if smooth_sigma > 0:
+            cv2.GaussianBlur(w, (size, size), sigmaX=float(smooth_sigma),
+                             sigmaY=float(smooth_sigma), dst=weights[i],
+                             borderType=cv2.BORDER_REPLICATE)
+        elif w is not weights[i]:
+            weights[i] = w
     return weights
 
 

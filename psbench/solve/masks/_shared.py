@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...registry import Threshold
-from .. import kernel
+from . import _kernel
 from ..thresholds import COUNTS, TABLE_5_2, eq_5_1
 
 __all__ = ["K_LOW", "T_NL", "T_RE", "bisectors", "reflection_valid", "lambert_residual"]
@@ -45,8 +45,10 @@ def reflection_valid(normals, directions, t_re):
     k = H.shape[0]
     c = np.cos(np.radians(np.broadcast_to(np.asarray(t_re, dtype=float), (k,))))
     P = normals.shape[:-1]
-    cosang = (H.astype(np.float32) @ normals.reshape(-1, 3).T).reshape((k,) + P)
-    return cosang <= c.astype(np.float32).reshape((k,) + (1,) * len(P))
+    n = np.ascontiguousarray(normals, dtype=np.float32).reshape(-1, 3)
+    out = np.empty((k, n.shape[0]), dtype=bool)
+    _kernel.within_cos(n, H.astype(np.float32), c.astype(np.float32), out)
+    return out.reshape((k,) + P)
 
 
 def lambert_residual(ctx, images, b):
@@ -54,5 +56,10 @@ def lambert_residual(ctx, images, b):
     once per evaluation (``ctx.cache``) however many masks read them."""
     r = ctx.cache.get("lambert_residual")
     if r is None:
-        r = ctx.cache["lambert_residual"] = kernel.residuals(images, b, ctx.S32)
+        k = images.shape[0]
+        I2 = np.ascontiguousarray(images, dtype=np.float32).reshape(k, -1)
+        r = np.empty(I2.shape, dtype=np.float32)
+        _kernel.lambert_residuals(I2, np.ascontiguousarray(b, dtype=np.float32).reshape(-1, 3),
+                                  np.asarray(ctx.S32, dtype=np.float32), r)
+        r = ctx.cache["lambert_residual"] = r.reshape(images.shape)
     return r
