@@ -6,15 +6,13 @@ residual magnitudes, and the fill of the missing observations. Same results as
 ``valid.sum(axis=0)``, ``np.argsort(r, axis=0, kind="stable")`` and the vectorised
 fill; every column is handled on its own, so any thread count gives the same result.
 
-They run on one thread (no ``prange``): psbench's harness forks its run processes, and
-a process forked from one that has used numba's OpenMP threading layer (GNU OpenMP
-here) aborts at its first parallel region ("fork() called from a process already using
-GNU OpenMP"). Whether to enable threads is a project-wide choice of threading layer.
+Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
+layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["short_columns", "order", "fill"]
 
@@ -47,7 +45,7 @@ def order(r, dtype):
     return _stable_order(r, np.empty(r.shape, dtype=dtype))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _stable_order(r, out):
     """``out[:, j] = argsort(r[:, j], kind="stable")`` for every column (NaN last).
 
@@ -57,7 +55,7 @@ def _stable_order(r, out):
     out : (k, n) integer
     """
     k, n = r.shape
-    for j in range(n):
+    for j in prange(n):
         idx = np.empty(k, dtype=np.int64)
         key = np.empty(k, dtype=r.dtype)
         for i in range(k):  # insertion sort: moves only strictly greater keys (stable)

@@ -5,20 +5,18 @@ One pass over the observations replaces the per-light chain of numpy temporaries
 element depends on its own pixel only, so the result does not depend on the thread
 count.
 
-It runs on one thread (no ``prange``): psbench's harness forks its run processes, and
-a process forked from one that has used numba's OpenMP threading layer (GNU OpenMP
-here) aborts at its first parallel region ("fork() called from a process already using
-GNU OpenMP"). Whether to enable threads is a project-wide choice of threading layer.
+Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
+layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["inverse_variances"]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def inverse_variances(images, b, S, valid, smin, out):
     """``out[i] = 1 / sigma_i^2`` with Eq. 3.19's sigma in units of ``smin``.
 
@@ -36,7 +34,7 @@ def inverse_variances(images, b, S, valid, smin, out):
     """
     k, H, W = images.shape
     one = np.float32(1.0)
-    for r in range(H):
+    for r in prange(H):
         for i in range(k):
             s0, s1, s2 = S[i, 0], S[i, 1], S[i, 2]
             for c in range(W):

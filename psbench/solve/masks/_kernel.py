@@ -8,25 +8,23 @@ as BLAS does; the two can still round a product differently in the last bit, so 
 decision exactly at its threshold may differ from the matrix-product formulation. Every
 output depends on its own pixel only: any thread count gives the same result.
 
-They run on one thread (no ``prange``): psbench's harness forks its run processes, and
-a process forked from one that has used numba's OpenMP threading layer (GNU OpenMP
-here) aborts at its first parallel region ("fork() called from a process already using
-GNU OpenMP"). Whether to enable threads is a project-wide choice of threading layer.
+Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
+layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["lambert_residuals", "within_cos"]
 
 
-@njit(cache=True, nogil=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, parallel=True, fastmath={"contract"})
 def lambert_residuals(images, b, S, out):
     """``out[i, p] = images[i, p] - S[i] . b[p]``; images (k, n), b (n, 3), S (k, 3)
     float32."""
     k, n = images.shape
-    for p in range(n):
+    for p in prange(n):
         b0, b1, b2 = b[p, 0], b[p, 1], b[p, 2]
         for i in range(k):
             t = S[i, 0] * b0
@@ -36,13 +34,13 @@ def lambert_residuals(images, b, S, out):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, parallel=True, fastmath={"contract"})
 def within_cos(normals, H, c, out):
     """``out[i, p] = H[i] . normals[p] <= c[i]``; normals (n, 3), H (k, 3), c (k,)
     float32."""
     k = H.shape[0]
     n = normals.shape[0]
-    for p in range(n):
+    for p in prange(n):
         n0, n1, n2 = normals[p, 0], normals[p, 1], normals[p, 2]
         for i in range(k):
             t = H[i, 0] * n0
