@@ -38,6 +38,7 @@ from .._checks import PsbenchError
 from . import spec as S
 from .params import PARAMS, normalize, run_id, scene_key, validate
 from .params import plain as _plain  # noqa: F401 - used by grid
+from ._timing import pinned_threads, warm_up  # noqa: F401 - pinned_threads: public here
 
 __all__ = ["PARAMS", "KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
            "execute", "run_chunk", "format_row", "provenance", "select_lights", "solve_run",
@@ -233,37 +234,11 @@ def solve_run(p, images, lights, object_mask, *, rounds=None):
                  th_scope=p["th_scope"], seed=p["seed"], **kw)
 
 
-#: side of the crop solved before a timed solve (see :func:`_warm_up`)
-WARM_UP_SIZE = 16
-
-
-def _warm_up(p, sc):
-    """Solve a small central crop of the scene exactly as run ``p`` will, untimed, so
-    that ``t_solve`` is the solve's own time: the first call of a compiled kernel in a
-    process loads it (and numba's runtime), a one-time cost of 0.1-0.7 s that would
-    otherwise land on whichever run of a chunk comes first. Failures and warnings here
-    are ignored; the timed solve reports them."""
-    import warnings
-
-    k, H, W = sc.images.shape
-    n = min(WARM_UP_SIZE, H, W)
-    r0, c0 = (H - n) // 2, (W - n) // 2
-    crop = (slice(r0, r0 + n), slice(c0, c0 + n))
-    mask = None if sc.mask is None else np.ascontiguousarray(np.asarray(sc.mask)[crop])
-    images = np.ascontiguousarray(sc.images[(slice(None),) + crop])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            solve_run(p, images, sc.lights, mask)
-        except Exception:  # noqa: BLE001 - a warm-up only; the timed solve raises
-            pass
-
-
 def _solve_metrics(p, sc, keep=None):
     from ..metrics import (intensity_error, ne_by_zenith, normal_error_map,
                            normal_error_stats, quality_factor)
 
-    _warm_up(p, sc)
+    warm_up(solve_run, p, sc)
     t0 = time.perf_counter()
     res = solve_run(p, sc.images, sc.lights, sc.mask)
     t_solve = time.perf_counter() - t0
@@ -397,30 +372,6 @@ def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict
     row.update(status="failed", error=str(error), traceback=str(error),
                utc=_dt.datetime.now(_dt.timezone.utc))
     return row
-
-
-class pinned_threads:
-    """Run with one BLAS / OpenMP / numba thread: a run's numbers must not depend on how it was
-    launched (a single ``psbench`` call, a ``-m`` worker, a shard job), and the thread
-    count changes the summation order of multi-threaded BLAS kernels."""
-
-    def __enter__(self):
-        from threadpoolctl import threadpool_limits
-
-        self._lim = threadpool_limits(limits=1)
-        # numba's parallel kernels have their own pool (thread-local setting)
-        import numba
-
-        self._numba = numba.get_num_threads()
-        numba.set_num_threads(1)
-        return self
-
-    def __exit__(self, *exc):
-        import numba
-
-        numba.set_num_threads(self._numba)
-        self._lim.restore_original_limits()
-        return False
 
 
 def _compute(p, row, cache, keep=None):
