@@ -71,21 +71,27 @@ def _best(values, names):
 
 
 def _every_noise(claim, agg, part, who_names, what):
-    """The best of ``who_names`` beats the best thesis mask at every noise level."""
+    """The best of ``who_names`` beats the best thesis mask at every noise level.
+
+    NOT SUPPORTED when it loses clearly (by at least ``NE_MARGIN``) at some level, even
+    if another level is too close to call; INCONCLUSIVE when no level is lost clearly
+    but some gap is below the margin."""
     cols = [c for c in NOISE if part_values(agg, part, c)]
     if not cols:
         return nodata(claim)
-    wins, details, close = [], [], False
+    wins, details, close, clear_loss = [], [], False, False
     for c in cols:
         v = part_values(agg, part, c)
         w, wv = _best(v, who_names)
         m, mv = _best(v, MASKS)
         if w is None or m is None:
             return nodata(claim)
+        near = abs(mv - wv) < NE_MARGIN
         wins.append(wv < mv)
-        close |= abs(mv - wv) < NE_MARGIN
+        close |= near
+        clear_loss |= not near and wv > mv
         details.append(f"{c}: {what}{w} {num(wv)} vs {m} {num(mv)}")
-    return verdict(claim, all(wins), "; ".join(details), undecided=close and not all(wins))
+    return verdict(claim, all(wins), "; ".join(details), undecided=close and not clear_loss)
 
 
 @own_questions

@@ -7,13 +7,15 @@ from psbench.experiments import robust as E
 from psbench.harness.grid import expand, load
 
 
-def _rows(robust_at_02):
+def _rows(robust_at_02, robust_at_005=None):
     recs = []
     for nz in (0.0, 0.05, 0.1, 0.2):
         vals = {"None": 9 + 10 * nz, "Th": 4 + 40 * nz, "robust": 0.1 + 30 * nz,
                 "tsfit": 0.2 + 25 * nz, "trim": 7 + 10 * nz}
         if nz == 0.2:
             vals["robust"] = robust_at_02
+        if nz == 0.05 and robust_at_005 is not None:
+            vals["robust"] = robust_at_005
         for lab, v in vals.items():
             meth, mask = ("ps", lab) if lab in ("None", "Th") else (lab, "None")
             for surf in ("semisphere", "sombrero"):
@@ -43,6 +45,16 @@ def test_verdicts_decide_per_noise_level():
               "0.2 (45x8)"] == "SUPPORTED"
     assert all(s == "INCONCLUSIVE" for s in
                (x.status for x in E.verdicts(E.aggregate(pd.DataFrame()))))
+
+
+def test_a_clear_loss_decides_even_when_another_level_is_close():
+    # Th at 5 %: 6.0 deg. robust 6.05 there is too close to call; at 20 % it loses clearly
+    claim = "robust (the default) beats the best thesis mask at every noise level (45x8)"
+    v = {x.claim: x.status for x in E.verdicts(E.aggregate(_rows(13.0, robust_at_005=6.05)))}
+    assert v[claim] == "NOT SUPPORTED"
+    # no clear loss, one level too close to call (a win by less than the margin)
+    v = {x.claim: x.status for x in E.verdicts(E.aggregate(_rows(5.0, robust_at_005=5.95)))}
+    assert v[claim] == "INCONCLUSIVE"
 
 
 def test_ci_scale_is_small():
