@@ -16,6 +16,7 @@ import warnings
 import numpy as np
 
 from ..base import Fit
+from ..kernel import sym3_cofactors
 
 __all__ = ["Pixels", "wls", "leverage", "masked_median", "weights_out"]
 
@@ -130,26 +131,21 @@ class Pixels:
     def rows(self, sl):
         """A view of the pixels ``sl`` (a slice): ``I``, ``V`` and ``m`` restricted,
         everything else shared (for per-block processing that stays in cache)."""
-        sub = object.__new__(type(self))
-        sub.__dict__.update(self.__dict__)
-        sub.I = self.I[sl]
-        sub._n = sub.I.shape[0]
-        sub._Ik = sub.Vk = None
-        sub.m = self.m[sl]
-        sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[sl])
-        sub._start_rows = sl
-        return sub
+        return self._subset(sl)
 
     def take(self, idx):
         """A view like :meth:`rows` of the pixels ``idx`` (an index array; copies)."""
+        return self._subset(idx)
+
+    def _subset(self, sel):
         sub = object.__new__(type(self))
         sub.__dict__.update(self.__dict__)
-        sub.I = self.I[idx]
+        sub.I = self.I[sel]
         sub._n = sub.I.shape[0]
         sub._Ik = sub.Vk = None
-        sub.m = self.m[idx]
-        sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[idx])
-        sub._start_rows = idx
+        sub.m = self.m[sel]
+        sub.V = (np.broadcast_to(np.True_, sub.I.shape) if self.all_valid else self.V[sel])
+        sub._start_rows = sel
         return sub
 
     def blocks(self, values=BLOCK_VALUES):
@@ -276,16 +272,7 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
     a = np.ascontiguousarray(np.matmul(w, px.outer).T)
     wi = np.multiply(w, I, out=scratch)
     r = np.ascontiguousarray(np.matmul(wi, px.S32).T)
-    a00, a01, a02, a11, a12, a22 = a
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    tr = a00 + a11 + a22
-    ok = np.abs(det) > 1e-6 * tr * tr * tr
+    (c00, c01, c02, c11, c12, c22), det, ok = sym3_cofactors(a)
     inv_det = np.divide(np.float32(1), det, out=np.zeros_like(det), where=ok)
     r0, r1, r2 = r
     b = np.empty((I.shape[0], 3), dtype=np.float32)
