@@ -373,30 +373,40 @@ def evaluate(tab, I, w, n, rd, rs, m, jac, cost, S, t):
 def init_rho(tab, I, w, n, m, rs_max, rs_fixed, has_rs, want_cost, rd_out, rs_out, cost):
     """Least-squares (rho_d, rho_s) for fixed n, m per pixel (2 x 2, clipped to the
     bounds; rho_d alone where ``has_rs``, rho_s then taken from ``rs_fixed``), and
-    (``want_cost``) the cost there from the same sums."""
+    (``want_cost``) the cost there from the same sums.
+
+    Lights outer, pixels inner: the (k, P) observations are read along their rows
+    and the pixel loop vectorises (2-3x faster than a loop over lights per pixel)."""
     k, P = I.shape
     nb = (P + BLOCK - 1) // BLOCK
     for blk in prange(nb):
-        for p in range(blk * BLOCK, min(P, (blk + 1) * BLOCK)):
-            nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
-            m2 = float(m[p]) ** 2
-            a00 = a01 = a11 = r0 = r1 = wII = 0.0
-            for i in range(k):
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        acc = np.zeros((6, hi - lo))  # a00, a01, a11, r0, r1, wII per pixel
+        for i in range(k):
+            dx, dy, dz = tab[_DX, i], tab[_DY, i], tab[_DZ, i]
+            hx, hy, hz, mu = tab[_HX, i], tab[_HY, i], tab[_HZ, i], tab[_MU, i]
+            for p in range(lo, hi):
+                nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
+                m2 = float(m[p]) ** 2
                 wi = float(w[i, p])
                 Ii = float(I[i, p])
-                c = tab[_DX, i] * nx + tab[_DY, i] * ny + tab[_DZ, i] * nz
-                ch = min(max(tab[_HX, i] * nx + tab[_HY, i] * ny + tab[_HZ, i] * nz, -1.0),
-                         1.0)
+                c = dx * nx + dy * ny + dz * nz
+                ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
                 th = _acos(ch)
-                G = tab[_MU, i] if c > 0.0 else 0.0
+                G = mu if c > 0.0 else 0.0
                 c *= G  # d f / d rho_d, d f / d rho_s
                 e = _expm(m2 * th * th) * G
-                wII += wi * Ii * Ii
-                a00 += wi * c * c
-                a01 += wi * c * e
-                a11 += wi * e * e
-                r0 += wi * c * Ii
-                r1 += wi * e * Ii
+                j = p - lo
+                acc[5, j] += wi * Ii * Ii
+                acc[0, j] += wi * c * c
+                acc[1, j] += wi * c * e
+                acc[2, j] += wi * e * e
+                acc[3, j] += wi * c * Ii
+                acc[4, j] += wi * e * Ii
+        for p in range(lo, hi):
+            j = p - lo
+            a00, a01, a11 = acc[0, j], acc[1, j], acc[2, j]
+            r0, r1, wII = acc[3, j], acc[4, j], acc[5, j]
             if has_rs:
                 rs = float(rs_fixed[p])
                 rd = max((r0 - a01 * rs) / max(a00, 1e-30), 0.0)
@@ -423,19 +433,21 @@ def init_rho(tab, I, w, n, m, rs_max, rs_fixed, has_rs, want_cost, rd_out, rs_ou
 
 @njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
 def predict(tab, n, rd, rs, m, out):
-    """Model images out (k, P) float32 for normals n (3, P) and per-pixel rd, rs, m."""
+    """Model images out (k, P) float32 for normals n (3, P) and per-pixel rd, rs, m
+    (lights outer, pixels inner, as in :func:`init_rho`)."""
     k = tab.shape[1]
     P = n.shape[1]
     nb = (P + BLOCK - 1) // BLOCK
     for blk in prange(nb):
-        for p in range(blk * BLOCK, min(P, (blk + 1) * BLOCK)):
-            nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
-            m2 = float(m[p]) ** 2
-            rdp, rsp = float(rd[p]), float(rs[p])
-            for i in range(k):
-                c = tab[_DX, i] * nx + tab[_DY, i] * ny + tab[_DZ, i] * nz
-                ch = min(max(tab[_HX, i] * nx + tab[_HY, i] * ny + tab[_HZ, i] * nz, -1.0),
-                         1.0)
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        for i in range(k):
+            dx, dy, dz = tab[_DX, i], tab[_DY, i], tab[_DZ, i]
+            hx, hy, hz, mu = tab[_HX, i], tab[_HY, i], tab[_HZ, i], tab[_MU, i]
+            for p in range(lo, hi):
+                nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
+                c = dx * nx + dy * ny + dz * nz
+                ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
                 th = _acos(ch)
-                e = _expm(m2 * th * th)
-                out[i, p] = tab[_MU, i] * (rdp * c + rsp * e) if c > 0.0 else 0.0
+                e = _expm(float(m[p]) ** 2 * th * th)
+                v = mu * (float(rd[p]) * c + float(rs[p]) * e)
+                out[i, p] = v if c > 0.0 else 0.0

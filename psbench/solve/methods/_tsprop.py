@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _lm
+from . import _tsaux_kernel as _kx
 
 __all__ = ["Grid", "propagate"]
 
@@ -35,7 +36,6 @@ SWEEPS = 2
 #: a refit replaces a pixel's solution when it lowers the cost by this fraction
 #: (smaller differences are Levenberg–Marquardt's tolerance, not another basin)
 GAIN = 1e-3
-_OFFSETS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
 class Grid:
@@ -54,42 +54,28 @@ class Grid:
         H, W = shape
         self.shape = shape
         self.idx = idx
-        self.fitted = fitted
+        self.fitted = np.ascontiguousarray(fitted, dtype=bool)
         y, x = np.divmod(idx, W)
         self.flat = (y + 1) * (W + 2) + (x + 1)  # in the 1-pixel padded grid
-
-    def _padded(self, values, dtype):
-        """(c, P) values of the fitted pixels on the padded grid (c, H + 2, W + 2)."""
-        H, W = self.shape
-        pad = np.zeros((values.shape[0], (H + 2) * (W + 2)), dtype=dtype)
-        f = self.fitted
-        pad[:, self.flat[f]] = values[:, f]
-        return pad.reshape(-1, H + 2, W + 2)
+        self.pos = np.full((H + 2) * (W + 2), -1, dtype=np.int64)  # padded grid -> pixel
+        f = np.flatnonzero(self.fitted)
+        self.pos[self.flat[f]] = f
 
     def near(self, changed):
         """(P,) bool: fitted pixels with a changed pixel among their 8 neighbours."""
-        H, W = self.shape
-        pad = self._padded(changed[None], bool)[0]
-        out = np.zeros((H, W), dtype=bool)
-        for dy, dx in _OFFSETS:
-            out |= pad[1 + dy:H + 1 + dy, 1 + dx:W + 1 + dx]
-        return out.reshape(-1)[self.idx] & self.fitted
+        out = np.empty(self.idx.size, dtype=bool)
+        _kx.near(self.pos, self.flat, self.shape[1] + 2, np.ascontiguousarray(changed),
+                 self.fitted, out)
+        return out
 
     def disagreement(self, n):
         """Angle (radians) between each fitted normal and the mean of its fitted
         neighbours' normals (NaN where there is none), and that mean (3, P)."""
-        H, W = self.shape
-        f = self.fitted
-        pad = self._padded(n, np.float32)
-        acc = np.zeros((3, H, W), dtype=np.float32)
-        for dy, dx in _OFFSETS:
-            acc += pad[:, 1 + dy:H + 1 + dy, 1 + dx:W + 1 + dx]
-        acc = acc.reshape(3, -1)[:, self.idx]
-        norm = np.sqrt((acc * acc).sum(0))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = acc / norm
-        cos = (mean * n).sum(0)
-        ang = np.where((norm > 0) & f, np.arccos(np.clip(cos, -1.0, 1.0)), np.nan)
+        P = self.idx.size
+        mean = np.empty((3, P), dtype=np.float32)
+        ang = np.empty(P, dtype=np.float32)
+        _kx.neighbour_mean(self.pos, self.flat, self.shape[1] + 2,
+                           np.ascontiguousarray(n, dtype=np.float32), self.fitted, mean, ang)
         return ang, mean
 
 

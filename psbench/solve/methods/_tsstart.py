@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _tsaux_kernel as _kx
 from ._lm import _solve_spd
 
 __all__ = ["STARTS", "resolve_start", "start_weights", "trimmed"]
@@ -172,7 +173,7 @@ def noise_sigma(I, pred, w, *, lambert=False):
     return np.where(ok, sig, fill).astype(np.float32)
 
 
-def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
+def put_back(I, valid, model, sigma, dark_ratio, dark_sigmas):
     """Weights with the highlights put back, on gathered pixels.
 
     A usable observation is dark (a shadow the model cannot explain) when the
@@ -190,9 +191,10 @@ def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
         Observations.
     valid : (k, P) bool
         The mask expression's validity (never overridden).
-    pred : (k, P) float32 or callable
-        The model's prediction (clamped at 0), or ``pred(slice) -> (k, n)`` giving
-        it for a slice of the pixels.
+    model : tuple
+        ``(L, n, rd, rs, m)``: the lights (:class:`_lm.Lights`), unit normals
+        (3, P), and per-pixel rho_d, rho_s, m (P,) of the prediction (clamped at 0
+        in self shadow); ``rs=None``: the Lambert prediction rho_d (s_i . n).
     sigma : (k,) float32
         Per-image noise scale (:func:`noise_sigma`).
 
@@ -201,15 +203,16 @@ def put_back(I, valid, pred, sigma, dark_ratio, dark_sigmas):
     (k, P) bool
         The weights (1 = True).
     """
-    margin = (np.float32(dark_sigmas) * sigma)[:, None]
-    ratio = np.float32(dark_ratio)
+    L, n, rd, rs, m = model
+    lobe = rs is not None
+    f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
+    rs = f32(rs) if lobe else np.zeros(1, np.float32)
+    m = f32(m) if lobe else np.zeros(1, np.float32)
+    margin = f32(np.float32(dark_sigmas) * np.asarray(sigma, dtype=np.float32))
     w = np.empty(I.shape, dtype=bool)
-    for lo in range(0, I.shape[1], CHUNK):
-        s = slice(lo, lo + CHUNK)
-        p, i = pred(s) if callable(pred) else pred[:, s], I[:, s]
-        dark = (i < ratio * p) & (i < p - margin) & (p > margin)
-        np.logical_and(valid[:, s], ~dark, out=dark)
-        w[:, s] = dark
+    _kx.dark_weights(L.table, f32(n), f32(rd), rs, m, lobe, f32(I),
+                     np.ascontiguousarray(valid, dtype=bool), margin,
+                     np.float32(dark_ratio), w)
     return w
 
 

@@ -297,7 +297,7 @@ def _tsfit(problem, opt, start_name):
         sigma = noise_sigma(I[:, sub], lambert_pred(b0[:, sub], S), w_start[:, sub],
                             lambert=True)
         del w_start
-        w = put_back(I, valid, lambda s: lambert_pred(b0[:, s], S), sigma, opt.dark_ratio,
+        w = put_back(I, valid, (L, n0, rd0, None, None), sigma, opt.dark_ratio,
                      opt.dark_sigmas)
     else:
         del w_start
@@ -332,8 +332,8 @@ def _tsfit(problem, opt, start_name):
         sub = slice(0, None, max(1, P // SIGMA_PIXELS))
         sigma = noise_sigma(I[:, sub], _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub]),
                             w[:, sub])
-        w_new = put_back(I, valid, lambda s: _lm.predict(L, n[:, s], rd[s], rs[s], m[s]),
-                         sigma, opt.dark_ratio, opt.dark_sigmas)
+        w_new = put_back(I, valid, (L, n, rd, rs, m), sigma, opt.dark_ratio,
+                         opt.dark_sigmas)
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
         ok = changed & (w.sum(axis=0) >= MIN_OBS)
