@@ -1,5 +1,6 @@
-"""Compiled helpers of tsfit around the fit: the dark-observation test of the
-weights and the neighbour statistics of the propagation.
+"""Compiled helpers of tsfit around the fit -- the dark-observation test of the
+weights and the neighbour statistics of the propagation -- and the residuals of
+``robust``'s choice between its two fits.
 
 Each replaces a chain of numpy temporaries over the (k, P) observations or the
 (3, H, W) normals with one pass; every pixel is computed on its own, so results
@@ -14,7 +15,7 @@ from numba import njit, prange
 
 from ._tsfit_kernel import _DX, _DY, _DZ, _HX, _HY, _HZ, _MU, BLOCK, FASTMATH, _acos, _expm
 
-__all__ = ["dark_weights", "neighbour_mean", "near"]
+__all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample"]
 
 #: the 8-neighbourhood as (row, column) offsets
 _DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
@@ -99,3 +100,93 @@ def near(pos, flat, W2, changed, fitted, out):
                 if q >= 0 and changed[q]:
                     hit = True
         out[p] = hit
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
+def _residuals(tab, bt, rs, m, bl, I, p, rt, rl):
+    """rt, rl (k,): the residuals of pixel p under the two fits of
+    :func:`choice_losses`."""
+    bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
+    rho = math.sqrt(bx * bx + by * by + bz * bz)
+    s = 1.0 / max(rho, 1e-30)
+    nx, ny, nz = bx * s, by * s, bz * s
+    m2 = float(m[p]) ** 2
+    rsp = float(rs[p])
+    lx, ly, lz = float(bl[0, p]), float(bl[1, p]), float(bl[2, p])
+    for i in range(tab.shape[1]):
+        dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
+        c = dx * nx + dy * ny + dz * nz
+        ch = min(max(tab[_HX, i] * nx + tab[_HY, i] * ny + tab[_HZ, i] * nz, -1.0), 1.0)
+        th = _acos(ch)
+        f = mu * (rho * c + rsp * _expm(m2 * th * th)) if c > 0.0 else 0.0
+        x = float(I[i, p])
+        rt[i] = x - f
+        rl[i] = x - mu * (dx * lx + dy * ly + dz * lz)
+
+
+@njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
+def choice_losses(tab, bt, rs, m, bl, I, V, all_valid, cap, loss_t, loss_l):
+    """Truncated losses sum_i min(r_i^2, cap) over the valid observations of the two
+    fits ``robust`` chooses between, (P,) each.
+
+    bt (3, P): rho_d n of the Lambert + Torrance–Sparrow fit, with rho_s, m (P,);
+    bl (3, P): rho n of the Lambertian fit (its residual is not clamped in self
+    shadow: it is a plain least-squares fit); I, V (k, P) (V unused when
+    ``all_valid``). Lights outer, pixels inner (the pixel loop vectorises)."""
+    k, P = I.shape
+    nb = (P + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        nrm = np.empty((4, hi - lo))  # the unit normal and rho_d of the TS fit
+        for p in range(lo, hi):
+            bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
+            rho = math.sqrt(bx * bx + by * by + bz * bz)
+            s = 1.0 / max(rho, 1e-30)
+            nrm[0, p - lo], nrm[1, p - lo], nrm[2, p - lo] = bx * s, by * s, bz * s
+            nrm[3, p - lo] = rho
+            loss_t[p] = 0.0
+            loss_l[p] = 0.0
+        rt = np.empty(hi - lo)
+        rl = np.empty(hi - lo)
+        for i in range(k):
+            dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
+            hx, hy, hz = tab[_HX, i], tab[_HY, i], tab[_HZ, i]
+            for p in range(lo, hi):
+                j = p - lo
+                nx, ny, nz = nrm[0, j], nrm[1, j], nrm[2, j]
+                c = dx * nx + dy * ny + dz * nz
+                ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
+                th = _acos(ch)
+                f = mu * (nrm[3, j] * c + float(rs[p]) * _expm(float(m[p]) ** 2 * th * th))
+                x = float(I[i, p])
+                r = x - (f if c > 0.0 else 0.0)
+                rt[j] = min(r * r, cap)
+                r = x - mu * (dx * float(bl[0, p]) + dy * float(bl[1, p]) + dz * float(bl[2, p]))
+                rl[j] = min(r * r, cap)
+            if all_valid:
+                for p in range(lo, hi):
+                    loss_t[p] += rt[p - lo]
+                    loss_l[p] += rl[p - lo]
+            else:
+                for p in range(lo, hi):
+                    if V[i, p]:
+                        loss_t[p] += rt[p - lo]
+                        loss_l[p] += rl[p - lo]
+
+
+@njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
+def choice_sample(tab, bt, rs, m, bl, I, V, all_valid, pix, abs_t, abs_l):
+    """|residual| of the two fits of :func:`choice_losses` at the pixels ``pix``, into
+    abs_t, abs_l (k, len(pix)) float32 (NaN where not valid)."""
+    k = I.shape[0]
+    Q = pix.shape[0]
+    nb = (Q + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        rt, rl = np.empty(k), np.empty(k)
+        for j in range(blk * BLOCK, min(Q, (blk + 1) * BLOCK)):
+            p = pix[j]
+            _residuals(tab, bt, rs, m, bl, I, p, rt, rl)
+            for i in range(k):
+                ok = all_valid or V[i, p]
+                abs_t[i, j] = abs(rt[i]) if ok else math.nan
+                abs_l[i, j] = abs(rl[i]) if ok else math.nan

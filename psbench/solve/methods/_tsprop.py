@@ -25,6 +25,7 @@ import numpy as np
 
 from . import _lm
 from . import _tsaux_kernel as _kx
+from ._tsstart import take
 
 __all__ = ["Grid", "propagate"]
 
@@ -117,9 +118,9 @@ def propagate(L, I, w, n, rd, rs, m, rs_max, cost, grid, cols, opt, iters, conv,
         sel = np.flatnonzero(todo)
         if sel.size == 0:
             break
-        Is, ws, rsm = I[:, sel], w[:, sel], rs_max[sel]
+        Is, ws, rsm = take(I, sel), take(w, sel), rs_max[sel]
         ms = m[sel].copy()
-        ns = mean[:, sel].copy()
+        ns = take(mean, sel)
         rds, rss = _lm.init_rho(L, Is, ws, ns, ms, rsm, rs=rs[sel] if rs_fixed else None)
         it, cv, c = _lm.fit(L, Is, ws, ns, rds, rss, ms, rsm, cols=cols, m_lo=opt.m_min,
                             m_hi=opt.m_max, max_iter=opt.lm_max_iter, tol=opt.lm_tol)

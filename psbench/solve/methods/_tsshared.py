@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _lm, _tsgrid
+from ._tsstart import take
 
 __all__ = ["estimate"]
 
@@ -65,7 +66,7 @@ def estimate(L, I, w, n0, rs_max, opt, seed, cand):
         return (0.0 if share_rs else None), m0
     rng = np.random.default_rng(seed)
     sel = np.sort(rng.choice(cand, size=min(opt.m_sample, cand.size), replace=False))
-    Is, ws, ns, rsm = I[:, sel], w[:, sel], n0[:, sel], rs_max[sel]
+    Is, ws, ns, rsm = take(I, sel), take(w, sel), take(n0, sel), rs_max[sel]
     if opt.m_init is None and opt.m_mode != "fixed":
         sub = slice(0, None, max(1, sel.size // COARSE))
         m0 = _coarse_m(L, Is[:, sub], ws[:, sub], ns[:, sub], rsm[sub], opt)

@@ -19,13 +19,26 @@ import numpy as np
 from . import _tsaux_kernel as _kx
 from ._lm import _solve_spd
 
-__all__ = ["STARTS", "resolve_start", "start_weights", "trimmed"]
+__all__ = ["STARTS", "resolve_start", "start_weights", "trimmed", "take", "count"]
 
 #: start steps that are not registry methods
 STARTS = ("auto", "ls", "trimmed")
 #: fractions of each pixel's usable observations the trimmed start drops
 #: (darkest: shadows; brightest: highlights)
 TRIM_DARK, TRIM_BRIGHT = 0.25, 0.25
+
+
+def take(a, sel):
+    """``a[..., sel]`` (pixels last): np.take is several times faster than fancy
+    indexing on the last axis of a (k, P) array."""
+    return np.take(a, sel, axis=-1)
+
+
+def count(w):
+    """Observations of positive weight per pixel, (k, P) bool -> (P,) int32 (summing
+    the bytes: 6x faster than a boolean sum over the first axis)."""
+    return w.view(np.uint8).sum(axis=0, dtype=np.int32) if w.dtype == bool else \
+        (w > 0).view(np.uint8).sum(axis=0, dtype=np.int32)
 
 
 def resolve_start(name):
@@ -64,7 +77,7 @@ def trimmed(I, S, valid, *, dark=TRIM_DARK, bright=TRIM_BRIGHT):
         v = valid[:, s]
         key = np.where(v, I[:, s] * inv_mu, np.inf)  # unusable sort last
         srt = np.sort(key.T, axis=1)  # (p, k): contiguous per pixel, fast for small k
-        nv = v.sum(axis=0)
+        nv = count(v)
         lo = np.floor(dark * nv).astype(np.int64)
         hi = nv - np.floor(bright * nv).astype(np.int64)
         short = (hi - lo) < 3  # keep at least three: widen towards the bright end first
@@ -125,7 +138,7 @@ def start_weights(problem, name, idx, I, valid):
             bfull = fit.b
             wf = fit.weights if fit.weights is not None else fit.valid
             if wf is not None:
-                w = np.asarray(wf).reshape(k, -1)[:, idx] >= 0.5
+                w = take(np.asarray(wf).reshape(k, -1), idx) >= 0.5
         b = np.ascontiguousarray(np.asarray(bfull, dtype=np.float32).reshape(-1, 3)[idx].T)
     inliers = valid.copy() if w is None else w & valid
     bad = ~np.isfinite(b).all(axis=0)

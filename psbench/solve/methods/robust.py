@@ -69,6 +69,8 @@ import numpy as np
 
 from ...registry import Method
 from ..base import Options, check_choice, check_int, check_number
+from . import _lm
+from . import _tsaux_kernel as _kx
 from ._robust_common import Pixels
 from . import trim as trim_mod
 from .trim import TrimOptions, trim_fit
@@ -79,6 +81,8 @@ __all__ = ["RobustOptions", "robust", "METHOD", "TS_SETTINGS"]
 TS_SETTINGS = dict(start="trim", start_grid=0, refine=1, m_sample=500)
 #: fewest images for the Torrance-Sparrow step
 MIN_TS_IMAGES = 5
+#: observations (about) from which sigma is estimated: those of every step-th pixel
+SAMPLE_VALUES = 1 << 18
 
 
 @dataclass
@@ -116,36 +120,9 @@ class RobustOptions(Options):
         check_number(self.tol, "tol", lo=0, hi=0.1, lo_open=True, hi_open=True)
 
 
-def ts_predict(directions, power, b, rho_s, m):
-    """Lambert + Torrance-Sparrow images of the pixels, (n, k) float32.
-
-    ``b`` (n, 3) = rho_d n; ``rho_s`` and ``m`` floats or (n,) arrays; distant lights
-    (k, 3) of power (k,), orthographic view (0, 0, 1): f_i = mu_i [rho_d d_i.n +
-    rho_s exp(-m^2 arccos(h_i.n)^2)] where d_i.n > 0, else 0 (thesis Eq. 2.14, as
-    :func:`psbench.render` renders it)."""
-    d = np.asarray(directions, dtype=np.float64)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
-    h = d + np.array([0.0, 0.0, 1.0])
-    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
-    rho = np.linalg.norm(b, axis=1)
-    n = b / np.maximum(rho, 1e-30)[:, None]
-    cos = n @ d.astype(np.float32).T                          # (n, k)
-    th = np.clip(n @ h.astype(np.float32).T, -1.0, 1.0)
-    np.arccos(th, out=th)
-    th *= th
-    th *= -np.square(np.asarray(m, dtype=np.float32)).reshape(-1, 1)
-    np.exp(th, out=th)
-    th *= np.asarray(rho_s, dtype=np.float32).reshape(-1, 1)
-    f = cos * rho[:, None]
-    f += th
-    f *= cos > 0
-    f *= np.asarray(power, dtype=np.float32).reshape(1, -1)
-    return f
-
-
-def _mad(parts):
-    """1.4826 * the median of the absolute residuals gathered in ``parts``."""
-    a = np.concatenate(parts) if parts else np.zeros(0, dtype=np.float32)
+def _mad(a):
+    """1.4826 * the median of the absolute residuals ``a`` (NaN: not an observation)."""
+    a = a[np.isfinite(a)]
     return 1.4826 * float(np.median(a)) if a.size else 0.0
 
 
@@ -176,41 +153,32 @@ def robust(problem, options: RobustOptions):
                                          lm_tol=options.tol))
     sel = (slice(None),) if px.full else (px.idx,)
     b_t = np.asarray(ts.b, dtype=np.float32).reshape(-1, 3)[sel]
-    w_t = np.asarray(ts.weights, dtype=np.float32).reshape(px.k, -1)[(slice(None),) + sel]
+    w_t = np.asarray(ts.weights, dtype=np.float32).reshape(px.k, -1)
+    w_t = w_t if px.full else np.take(w_t, px.idx, axis=1)
     rho_s, m = ts.info.get("rho_s", 0.0), ts.info.get("m", 1.0)
     if np.ndim(rho_s):
         rho_s = np.asarray(rho_s, dtype=np.float32).reshape(-1)[sel]
     if np.ndim(m):
         m = np.asarray(m, dtype=np.float32).reshape(-1)[sel]
 
-    def pick(v, sl):
-        return v[sl] if np.ndim(v) else float(v)
     lay = problem.lights
     power = getattr(lay, "power", None)
     power = np.ones(px.k) if power is None else np.asarray(power, dtype=np.float64)
-    # squared residuals of both fits, block by block (the model evaluation is the
-    # costly part); sigma from the Torrance-Sparrow fit's used observations
-    sq_t = np.empty(px.I.shape, dtype=np.float32)
-    sq_l = np.empty(px.I.shape, dtype=np.float32)
-    sample_t, sample_l = [], []
-    for sl in px.blocks():
-        sub = px.rows(sl)
-        rt = np.subtract(sub.I, ts_predict(lay.directions, power, b_t[sl], pick(rho_s, sl),
-                                           pick(m, sl)), out=sq_t[sl])
-        rl = np.subtract(sub.I, b_l[sl] @ px.S32.T, out=sq_l[sl])
-        step = max(1, int(sub.I.size // 20000))          # a sample of each block
-        sample_t.append(np.abs(rt[sub.V] if not px.all_valid else rt.ravel())[::step])
-        sample_l.append(np.abs(rl[sub.V] if not px.all_valid else rl.ravel())[::step])
-        np.square(rt, out=rt)
-        np.square(rl, out=rl)
-        if not px.all_valid:
-            rt[~sub.V] = 0.0
-            rl[~sub.V] = 0.0
-    sigma = max(min(_mad(sample_t), _mad(sample_l)), 1e-6 * px.scale)
-    cap = np.float32((options.c * sigma) ** 2)
-    loss_t = np.minimum(sq_t, cap, out=sq_t).sum(axis=1)
-    loss_l = np.minimum(sq_l, cap, out=sq_l).sum(axis=1)
-    del sq_t, sq_l
+    tab = _lm.Lights(lay.directions, power).table
+    per_pixel = lambda v: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
+        np.asarray(v, dtype=np.float32), (px.n,)))
+    args = (tab, np.ascontiguousarray(b_t.T), per_pixel(rho_s), per_pixel(m),
+            np.ascontiguousarray(b_l.T), px.Ik, px.kernel_valid(), px.all_valid)
+    # sigma from a sample of the observations (every step-th pixel); the better fit's
+    # MAD (the lower of the two medians)
+    pix = np.arange(0, px.n, max(1, -(-px.n * px.k // SAMPLE_VALUES)))
+    abs_t = np.empty((px.k, pix.size), dtype=np.float32)
+    abs_l = np.empty_like(abs_t)
+    _kx.choice_sample(*args, pix, abs_t, abs_l)
+    sigma = max(min(_mad(abs_t), _mad(abs_l)), 1e-6 * px.scale)
+    loss_t = np.empty(px.n)
+    loss_l = np.empty(px.n)
+    _kx.choice_losses(*args, float((options.c * sigma) ** 2), loss_t, loss_l)
     use_t = loss_t <= loss_l
     b = np.where(use_t[:, None], b_t, b_l)
     weights = np.where(use_t[None, :], w_t, keep.astype(np.float32))   # (k, n)

@@ -17,8 +17,8 @@ from ..._checks import PsbenchError
 from ...registry import Method
 from ..base import Fit, Options, check_choice, check_int, check_number
 from . import _lm, _tsgrid, _tsprop, _tsshared
-from ._tsstart import (SIGMA_PIXELS, STARTS, lambert_pred, noise_sigma, put_back,
-                       resolve_start, start_weights, unit)
+from ._tsstart import (SIGMA_PIXELS, STARTS, count, lambert_pred, noise_sigma, put_back,
+                       resolve_start, start_weights, take, unit)
 
 __all__ = ["TsfitOptions", "tsfit", "METHOD"]
 
@@ -282,8 +282,11 @@ def _tsfit(problem, opt, start_name):
 
     obj = np.asarray(problem.object_mask, dtype=bool).reshape(-1)
     idx = np.flatnonzero(obj)
-    I = np.ascontiguousarray(images.reshape(k, -1)[:, idx], dtype=np.float32)  # (k, P)
-    valid = np.asarray(problem.valid, dtype=bool).reshape(k, -1)[:, idx]
+    full = idx.size == H * W  # the object is the whole image: no gathering
+    I = np.ascontiguousarray(images.reshape(k, -1) if full else take(images.reshape(k, -1), idx),
+                             dtype=np.float32)  # (k, P)
+    valid = np.asarray(problem.valid, dtype=bool).reshape(k, -1)
+    valid = valid if full else take(valid, idx)
     lay = problem.lights
     L = _lm.Lights(lay.directions, lay.power)
     S = L.d.astype(np.float64) * L.mu[:, None]
@@ -310,7 +313,7 @@ def _tsfit(problem, opt, start_name):
         s = slice(lo, lo + (1 << 16))
         top[s] = (I[:, s] * inv_mu * w[:, s]).max(axis=0)
     rs_max = (opt.rho_s_max * top).astype(np.float32)
-    fitted = (w.sum(axis=0) >= MIN_OBS) & (rd0 > 0)
+    fitted = (count(w) >= MIN_OBS) & (rd0 > 0)
     f = np.flatnonzero(fitted)
 
     rs_shared, m_shared = _tsshared.estimate(L, I, w, n0, rs_max, opt, problem.seed, f)
@@ -336,7 +339,7 @@ def _tsfit(problem, opt, start_name):
                          opt.dark_sigmas)
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
-        ok = changed & (w.sum(axis=0) >= MIN_OBS)
+        ok = changed & (count(w) >= MIN_OBS)
         if not ok.any():
             break
         _fit_subset(L, I, w, n, rd, rs, m, rs_max, np.flatnonzero(ok), cols, opt, iters,
@@ -371,9 +374,13 @@ def _tsfit(problem, opt, start_name):
     b = np.zeros((H * W, 3), dtype=np.float32)
     b[idx] = (n * rd).T
     del I, valid  # the gathered copies: not needed for the output
-    wfull = np.array(problem.valid, dtype=np.float32).reshape(k, -1)
-    wfull[:, idx] = w
-    wsum = np.maximum(w.sum(axis=0), 1).astype(np.float64)
+    if full:
+        wfull = w.astype(np.float32)
+    else:
+        wfull = np.array(problem.valid, dtype=np.float32).reshape(k, -1)
+        for i in range(k):  # row by row: faster than a 2-d fancy assignment
+            wfull[i, idx] = w[i]
+    wsum = np.maximum(count(w), 1).astype(np.float64)
     info = dict(rho_s=rs_shared if rs_shared is not None else plane(rs),
                 m=m_shared if opt.m_mode != "pixel" else plane(m, m_shared),
                 rms=plane(np.sqrt(cost / wsum)), start=start_name,
@@ -416,11 +423,11 @@ def _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_sh
     keep the lower cost (a start in the wrong basin ends with a high residual)."""
     if f.size == 0:
         return
-    rms = np.sqrt(cost[f] / np.maximum(w[:, f].sum(0), 1))
+    rms = np.sqrt(cost[f] / np.maximum(count(take(w, f)), 1))
     sel = f[rms > REPAIR * np.median(rms)]
     if sel.size == 0:
         return
-    Is, ws = I[:, sel], w[:, sel]
+    Is, ws = take(I, sel), take(w, sel)
     rs_fixed = None if rs_shared is None else rs[sel]
     ms = np.full(sel.size, m_shared, dtype=np.float32)
     ns = _tsgrid.grid_start(L, Is, ws, n[:, sel], m_shared, REPAIR_GRID, rs=rs_fixed)[0]
@@ -448,7 +455,7 @@ def _fit_subset(L, I, w, n, rd, rs, m, rs_max, sel, cols, opt, iters, conv, cost
     for lo in range(0, sel.size, group):
         g = sel[lo:lo + group]
         cut = g.size == rd.size or (g[-1] - g[0] + 1 == g.size)  # a contiguous range
-        pick = (lambda a: a[..., g[0]:g[-1] + 1]) if cut else (lambda a: a[..., g])
+        pick = (lambda a: a[..., g[0]:g[-1] + 1]) if cut else (lambda a: take(a, g))
         Ig, wg, rsm = pick(I), pick(w), pick(rs_max)
         ns, rds, rss, ms = (pick(a).copy() for a in (n, rd, rs, m))
         if start is not None:
