@@ -21,14 +21,14 @@ squares and Tukey-type hard rejection):
    the lobe estimated on 500 pixels, a step tolerance of 1e-3 (0.06 degrees), one
    refinement round of the dark observations.
 
-sigma is the noise level of the stack: 1.4826 times the median |residual| over all
-valid observations of the better of the two fits (the lower of the two medians).
-Where the model explains a pixel
-(specular highlights of one material) its loss is the lower; where observations
-depart from it in ways no lobe explains (a corrupted observation, a second material,
-interreflections) the trimmed fit, which ignores them, wins. With fewer than 5 images
-(the model has 3 unknowns per pixel and needs some redundancy) robust is the trimmed
-fit alone.
+sigma is the noise level of the stack: 1.4826 times the median |residual| over the
+valid observations of the better of the two fits (the lower of the two medians; the
+observations of every j-th pixel, about 2^18 of them, on large stacks). Where the
+model explains a pixel (specular highlights of one material) its loss is the lower;
+where observations depart from it in ways no lobe explains (a corrupted observation, a
+second material, interreflections) the trimmed fit, which ignores them, wins. With
+fewer than 5 images (the model has 3 unknowns per pixel and needs some redundancy)
+robust is the trimmed fit alone.
 
 Why this method -- the choice rule, fixed before measuring: the lowest mean of [mean
 NE over DiLiGenT cat and bear with all 96 lights, the 16 lights nearest 30x8+60x8 and
