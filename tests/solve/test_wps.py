@@ -252,7 +252,7 @@ def test_binary_weights_are_the_first_maximum(R):
     u[:, :20] = 0.5                                   # ties: the earlier ring, as argmax
     ref = np.zeros_like(u)
     ref[np.argmax(u, axis=0), np.arange(500)] = 1.0
-    _one_hot(u, 500)
+    _one_hot(u, 500, np.empty(500), np.empty(500))
     np.testing.assert_array_equal(u, ref)
 
 

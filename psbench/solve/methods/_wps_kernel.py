@@ -153,36 +153,41 @@ def _e_weights(B, E2, INV, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
                 z = _acos(nz) * (_DEG * inv_zscale)
                 u[q] *= _sig((1.0 - t) * z + t * (1.0 - z))
     if binary:
-        _one_hot(U, n)
+        _one_hot(U, n, s[0], s[1])
         return
-    s[:n] = 0.0
+    tot = s[0]
+    tot[:n] = 0.0
     for j in range(R):
         u = U[j]
         for q in range(n):
-            s[q] += u[q]
+            tot[q] += u[q]
     for j in range(R):
         u = U[j]
         for q in range(n):
-            u[q] = np.float32(u[q] / s[q])
+            u[q] = np.float32(u[q] / tot[q])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _one_hot(U, n):
+def _one_hot(U, n, best, pick):
     """Eq. 4.12: 1 at the first maximum of each pixel's weights (ties: the earlier ring;
-    a NaN stops the search, as numpy's running maximum does)."""
+    a NaN stops the search, as numpy's running maximum does). Rings in the outer loop,
+    pixels inner (selects, no branches: SIMD); ``best`` and ``pick`` are scratch (n,)."""
     R = U.shape[0]
+    u0 = U[0]
     for q in range(n):
-        best = U[0, q]
-        pick = 0
-        for j in range(1, R):
-            v = U[j, q]
-            if v > best:
-                pick = j
-                best = v
-            elif v != v:
-                best = v
-        for j in range(R):
-            U[j, q] = 1.0 if j == pick else 0.0
+        best[q] = u0[q]
+        pick[q] = 0.0
+    for j in range(1, R):
+        u = U[j]
+        for q in range(n):
+            v = u[q]
+            gt = v > best[q]
+            pick[q] = j if gt else pick[q]
+            best[q] = v if (gt or v != v) else best[q]
+    for j in range(R):
+        u = U[j]
+        for q in range(n):
+            u[q] = 1.0 if pick[q] == j else 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -480,7 +485,7 @@ def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src,
         E2 = np.empty((R, BLOCK))
         U = np.empty((R, BLOCK))
         Fb = np.empty((3, BLOCK))
-        s = np.empty(BLOCK)
+        s = np.empty((2, BLOCK))    # scratch of the weights
         RHO = np.empty((R, BLOCK))
         INV = np.empty((R, BLOCK))
         if plain:
