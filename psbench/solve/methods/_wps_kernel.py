@@ -19,13 +19,16 @@ from math import factorial
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "weigh_rings"]
+__all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "ring_solutions",
+           "weigh_rings"]
 
 #: pixels per block (16 images x 256 pixels float32 = 16 kB stay in L1)
 BLOCK = 256
 
 # weight kinds: "None" (shares n_j / k), the e-family (Eqs. 4.13-4.16), the oracle
 KIND_NONE, KIND_E, KIND_ORACLE = 0, 1, 2
+# outputs of a pass: fused and ring outputs, the fused ones only, the ring ones only
+_ALL, _FUSED, _RINGS = 0, 1, 2
 
 _DEG = 180.0 / math.pi
 # asin(s) = s + s z Q(z), z = s^2 <= 1/4: Taylor coefficients of Q (12 terms: error < 1e-10)
@@ -392,10 +395,9 @@ def _residual_block(B, E2, Fb, n, G, count, lo, resid):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e):
-    """The block's outputs: b (N, 3), w (R, N), ring normals (0, 0, 1 where rho_j <=
-    1e-6), albedo and RMS residual. Interleaved arrays are written through flat views
-    (2-d indexing of a slice would not vectorise)."""
+def _store_fused(U, Fb, lo, n, with_b, b, w):
+    """The block's fused outputs: b (N, 3) (written through a flat view: 2-d indexing
+    of a slice would not vectorise) and the weights w (R, N)."""
     if with_b:
         fx, fy, fz = Fb[0], Fb[1], Fb[2]
         bo = b.reshape(-1)[3 * lo:3 * (lo + n)]
@@ -403,12 +405,21 @@ def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albed
             bo[3 * q] = fx[q]
             bo[3 * q + 1] = fy[q]
             bo[3 * q + 2] = fz[q]
-    for j in range(B.shape[0]):
-        bx, by, bz, e2, u, rho, inv = B[j, 0], B[j, 1], B[j, 2], E2[j], U[j], RHO[j], INV[j]
-        wo, alb, e = w[j, lo:lo + n], ring_albedo[j, lo:lo + n], ring_e[j, lo:lo + n]
-        nrm = ring_normals[j].reshape(-1)[3 * lo:3 * (lo + n)]
+    for j in range(U.shape[0]):
+        u, wo = U[j], w[j, lo:lo + n]
         for q in range(n):
             wo[q] = u[q]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _store_rings(B, E2, RHO, INV, lo, n, ring_normals, ring_albedo, ring_e):
+    """The block's ring outputs: normals (0, 0, 1 where rho_j <= 1e-6), albedo and RMS
+    residual of every ring."""
+    for j in range(B.shape[0]):
+        bx, by, bz, e2, rho, inv = B[j, 0], B[j, 1], B[j, 2], E2[j], RHO[j], INV[j]
+        alb, e = ring_albedo[j, lo:lo + n], ring_e[j, lo:lo + n]
+        nrm = ring_normals[j].reshape(-1)[3 * lo:3 * (lo + n)]
+        for q in range(n):
             alb[q] = rho[q]
             e[q] = math.sqrt(e2[q])
             zero = rho[q] <= 1e-6
@@ -419,8 +430,8 @@ def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albed
 
 
 def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, rank,
-                inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
-                ring_e):
+                inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals=None,
+                ring_albedo=None, ring_e=None):
     """Every ring's least squares, residual and weight, and the fusion, in one pass over
     the images (no mask).
 
@@ -444,12 +455,36 @@ def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, 
         triples (Q, 3) (oracle).
     b, resid, w, ring_normals, ring_albedo, ring_e : float32 outputs
         (N, 3) fused rho n, (N,) its residual norm over every image, (R, N) weights,
-        (R, N, 3), (R, N), (R, N) RMS residual e_j.
+        (R, N, 3), (R, N), (R, N) RMS residual e_j. The ring outputs are optional
+        (None: not written; :func:`ring_solutions` gives them from the same arithmetic).
     """
     R = count.shape[0]
-    _pass(True, I2, order, start, P, F, G, count, np.empty((R, 3, 0), np.float32),
+    what = _ALL
+    if ring_normals is None:
+        what = _FUSED
+        ring_normals, ring_albedo, ring_e = _no_rings(R)
+    _pass(True, what, I2, order, start, P, F, G, count, np.empty((R, 3, 0), np.float32),
           np.empty((R, 0), np.float32), kind, share, src, surf, sinz, rank, inv_zscale, binary,
           T, pairs, tris, b, resid, w, ring_normals, ring_albedo, ring_e)
+
+
+def ring_solutions(I2, order, start, P, G, count, ring_normals, ring_albedo, ring_e):
+    """Every ring's normals, albedo and RMS residual alone, bit-identical to the ring
+    outputs of :func:`plain_rings` (the same compiled solve; arguments as there)."""
+    R = count.shape[0]
+    z = np.zeros(R)
+    t0 = np.zeros((1, 3), np.float32)
+    i0 = np.zeros((0, 2), np.int64)
+    _pass(True, _RINGS, I2, order, start, P, np.zeros((R, 3, 3)), G, count,
+          np.empty((R, 3, 0), np.float32), np.empty((R, 0), np.float32), KIND_NONE, z, False,
+          False, z, z, 1.0, False, t0, i0, np.zeros((0, 3), np.int64),
+          np.empty((0, 3), np.float32), np.empty(0, np.float32), np.empty((R, 0), np.float32),
+          ring_normals, ring_albedo, ring_e)
+
+
+def _no_rings(R):
+    return (np.empty((R, 0, 3), np.float32), np.empty((R, 0), np.float32),
+            np.empty((R, 0), np.float32))
 
 
 def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, binary, T, pairs,
@@ -463,18 +498,19 @@ def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, bina
     R = ring_b.shape[0]
     i0 = np.empty(0, np.int64)
     f0 = np.zeros((R, 3, 3))
-    _pass(False, np.empty((0, 0), np.float32), i0, i0, np.empty((0, 3)), f0, f0, i0,
+    _pass(False, _ALL, np.empty((0, 0), np.float32), i0, i0, np.empty((0, 3)), f0, f0, i0,
           np.ascontiguousarray(ring_b, np.float32), np.ascontiguousarray(e2, np.float32), kind,
           share, src, surf, sinz, rank, inv_zscale, binary, T, pairs, tris, b,
           np.empty(0, np.float32), w, ring_normals, ring_albedo, ring_e)
 
 
 @njit(cache=True, parallel=True, nogil=True, error_model="numpy")
-def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src, surf, sinz,
-          rank, inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
-          ring_e):
-    """The one compiled kernel (one compilation for both paths): ring solutions from the
-    images (``plain``) or from ``ring_b`` / ``e2``, then weights, fusion, outputs."""
+def _pass(plain, what, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src, surf,
+          sinz, rank, inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals,
+          ring_albedo, ring_e):
+    """The one compiled kernel (one compilation for every path): ring solutions from the
+    images (``plain``) or from ``ring_b`` / ``e2``, then weights, fusion and the fused
+    outputs, the ring outputs, or both (``what``)."""
     R = F.shape[0]
     N = I2.shape[1] if plain else ring_b.shape[2]
     nblocks = (N + BLOCK - 1) // BLOCK
@@ -496,12 +532,14 @@ def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src,
                     B[j, c, :n] = ring_b[j, c, lo:lo + n]
                 E2[j, :n] = e2[j, lo:lo + n]
         _norms(B, n, RHO, INV)
-        _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank,
-                     inv_zscale, binary, T, pairs, tris)
-        with_b = plain or kind != KIND_NONE
-        if with_b:
-            _fuse_block(B, U, n, kind, F, Fb)
-        if plain:
-            _residual_block(B, E2, Fb, n, G, count, lo, resid)
-        _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo,
-               ring_e)
+        if what != _RINGS:
+            _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank,
+                         inv_zscale, binary, T, pairs, tris)
+            with_b = plain or kind != KIND_NONE
+            if with_b:
+                _fuse_block(B, U, n, kind, F, Fb)
+            if plain:
+                _residual_block(B, E2, Fb, n, G, count, lo, resid)
+            _store_fused(U, Fb, lo, n, with_b, b, w)
+        if what != _FUSED:
+            _store_rings(B, E2, RHO, INV, lo, n, ring_normals, ring_albedo, ring_e)
