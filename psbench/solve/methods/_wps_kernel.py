@@ -1,9 +1,11 @@
 """Compiled per-pixel kernels of WPS (:mod:`psbench.solve.methods.wps`).
 
 One pass over the images solves every ring, measures its residual, weighs the rings and
-fuses them (Eqs. 4.3-4.16). Pixels are processed in blocks of :data:`BLOCK`: within a
-block the loops over pixels are innermost, so they compile to SIMD code, and the
-block's images stay in cache between the ring solves and their residuals. Arithmetic
+fuses them (Eqs. 4.3-4.16); the ring outputs come from the same pass or, on demand,
+from a pass that only solves the rings. Pixels are processed in blocks of
+:data:`BLOCK`, :data:`TASK` blocks per parallel task: within a block the loops over
+pixels are innermost, so they compile to SIMD code, and the block's images stay in
+cache between the ring solves and their residuals. Arithmetic
 is float64 per pixel, outputs are float32. Every pixel is computed on its own (no
 cross-pixel reduction, fixed blocks), so results do not depend on the thread count.
 

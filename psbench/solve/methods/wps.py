@@ -49,7 +49,9 @@ Decisions (where the thesis leaves room)
   engine on its own images and layout (``Problem.engine``: thresholds resolved for the
   ring's image count, ``weighted`` applied per ring). ``mask="None"`` without
   ``weighted`` solves every ring, measures its residual, weighs and fuses in one
-  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`).
+  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`); the ring
+  normals, albedo and residual are then computed when first read (the same compiled
+  ring solves again, bit-identical), as the plain PS residual is.
 
 Rings are reported in ``Layout.rings()`` order (ring id order), which is the order of
 the ring notation (``"30x8+60x8"``: ring 0 = 30 degrees).
