@@ -9,17 +9,17 @@ cache between the ring solves and their residuals. Arithmetic
 is float64 per pixel, outputs are float32. Every pixel is computed on its own (no
 cross-pixel reduction, fixed blocks), so results do not depend on the thread count.
 
-The surface-zenith sigmoid needs arccos and exp per pixel; calls into the C math library
-would stop the SIMD code (and cost ~12x more at 512^2), so both are evaluated inline
-from their Taylor series (accurate to ~1e-12, far below float32's resolution).
+The surface-zenith sigmoid needs arccos and exp per pixel: both are inline
+(:mod:`psbench.solve.methods._wps_math`), so the pixel loops stay SIMD.
 """
 from __future__ import annotations
 
 import math
-from math import factorial
 
 import numpy as np
 from numba import njit, prange
+
+from ._wps_math import DEG, acos, sig
 
 __all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "ring_solutions",
            "weigh_rings"]
@@ -33,56 +33,6 @@ TASK = 16
 KIND_NONE, KIND_E, KIND_ORACLE = 0, 1, 2
 # outputs of a pass: fused and ring outputs, the fused ones only, the ring ones only
 _ALL, _FUSED, _RINGS = 0, 1, 2
-
-_DEG = 180.0 / math.pi
-# asin(s) = s + s z Q(z), z = s^2 <= 1/4: Taylor coefficients of Q (12 terms: error < 1e-10)
-_Q = tuple(factorial(2 * m + 2) / (4 ** (m + 1) * factorial(m + 1) ** 2 * (2 * m + 3))
-           for m in range(12))
-# exp(r) for |r| <= 100 / 256 (11 terms: error < 1e-9 after the 8 squarings)
-_E = tuple(1.0 / factorial(m) for m in range(11))
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _acos(x):
-    """arccos on [-1, 1] without a library call (vectorisable; polynomials in Estrin's
-    form for short dependency chains)."""
-    a = abs(x)
-    big = a > 0.5
-    z = 0.5 * (1.0 - a) if big else a * a
-    s = math.sqrt(z) if big else a
-    z2 = z * z
-    z4 = z2 * z2
-    p0 = (_Q[0] + _Q[1] * z) + (_Q[2] + _Q[3] * z) * z2
-    p1 = (_Q[4] + _Q[5] * z) + (_Q[6] + _Q[7] * z) * z2
-    p2 = (_Q[8] + _Q[9] * z) + (_Q[10] + _Q[11] * z) * z2
-    p = p0 + (p1 + p2 * z4) * z4
-    asn = s + s * z * p
-    r = 2.0 * asn if big else 0.5 * math.pi - asn
-    return r if x >= 0.0 else math.pi - r
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _sig(x):
-    """Eq. 4.15's sigmoid 1 / (1 + exp(-10 (x - 0.5))); 0 where exp overflows float32, as
-    the float32 formula gives."""
-    y = -10.0 * (x - 0.5)
-    r = min(max(y, -100.0), 100.0) * 0.00390625     # exp(y) = exp(y / 256)^256
-    r2 = r * r
-    r4 = r2 * r2
-    p0 = (_E[0] + _E[1] * r) + (_E[2] + _E[3] * r) * r2
-    p1 = (_E[4] + _E[5] * r) + (_E[6] + _E[7] * r) * r2
-    p2 = (_E[8] + _E[9] * r) + _E[10] * r2
-    p = p0 + (p1 + p2 * r4) * r4
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    return 0.0 if y > 88.72283935546875 else 1.0 / (1.0 + p)
-
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _solve_block(I2, lo, n, order, start, P, G, B, E2):
@@ -157,8 +107,8 @@ def _e_weights(B, E2, INV, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
             t = rank[j]
             for q in range(n):
                 nz = min(max(bz[q] * inv[q], -1.0), 1.0)
-                z = _acos(nz) * (_DEG * inv_zscale)
-                u[q] *= _sig((1.0 - t) * z + t * (1.0 - z))
+                z = acos(nz) * (DEG * inv_zscale)
+                u[q] *= sig((1.0 - t) * z + t * (1.0 - z))
     if binary:
         _one_hot(U, n, s[0], s[1])
         return
