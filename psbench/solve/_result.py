@@ -108,8 +108,18 @@ class Timer:
 
 def mean_error(normals, truth, object_mask):
     """Mean angle (degrees) between unit normals over ``object_mask`` (diagnostics)."""
-    d = np.clip(np.einsum("hwc,hwc->hw", normals, truth), -1.0, 1.0)
-    return float(np.degrees(np.arccos(d[object_mask])).mean()) if object_mask.any() else 0.0
+    if not object_mask.any():
+        return 0.0
+    # einsum's sums, by components and in place (~3x faster on (H, W, 3))
+    d = np.multiply(normals[..., 0], truth[..., 0])
+    tmp = np.multiply(normals[..., 1], truth[..., 1])
+    d += tmp
+    np.multiply(normals[..., 2], truth[..., 2], out=tmp)
+    d += tmp
+    np.clip(d, -1.0, 1.0, out=d)
+    a = d.reshape(-1) if object_mask.all() else d[object_mask]
+    np.arccos(a, out=a)
+    return float(np.degrees(a, out=a).mean())
 
 
 def finish(ctx, b, valid, weights, *, timer, name, method, iterations, info, want_height,

@@ -252,7 +252,7 @@ def test_binary_weights_are_the_first_maximum(R):
     u[:, :20] = 0.5                                   # ties: the earlier ring, as argmax
     ref = np.zeros_like(u)
     ref[np.argmax(u, axis=0), np.arange(500)] = 1.0
-    _one_hot(u, 500)
+    _one_hot(u, 500, np.empty(500), np.empty(500))
     np.testing.assert_array_equal(u, ref)
 
 
@@ -432,15 +432,42 @@ def test_kernel_results_do_not_depend_on_threads_or_block_edges(weight):
     kernel's pixel block."""
     import numba
     I, lay, n = _scene(H=37, noise=0.02, seed=3)
+    fields = ("normals", "albedo", "residual", "ring_weights", "ring_normals", "ring_albedo",
+              "ring_residual")
     runs = []
     old = numba.get_num_threads()
     try:
         for t in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
             numba.set_num_threads(t)
-            runs.append(wps(I, lay, weight=weight, truth_normals=n))
+            r = wps(I, lay, weight=weight, truth_normals=n)
+            runs.append({f: getattr(r, f) for f in fields})  # ring outputs: read now
     finally:
         numba.set_num_threads(old)
     a, b = runs
-    for f in ("normals", "albedo", "residual", "ring_weights", "ring_normals", "ring_albedo",
-              "ring_residual"):
-        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    for f in fields:
+        np.testing.assert_array_equal(a[f], b[f], err_msg=f)
+
+
+@pytest.mark.parametrize("weight", ["e", "oracle"])
+def test_ring_outputs_on_demand_equal_the_pass_that_writes_everything(ts_scene, weight):
+    """Without a mask the ring normals / albedo / residual are computed when first read;
+    they are bit-identical to the one pass writing every output, and computed once."""
+    from psbench.solve.methods import _wps_kernel as K
+    from psbench.solve.methods import wps as W
+
+    I, lay, surf = ts_scene
+    k, H, Wd = I.shape
+    N = H * Wd
+    r = wps(I, lay, weight=weight, truth_normals=surf.normals)
+    assert "_lazy_ring_normals" in r.__dict__ and callable(r.__dict__["_lazy_ring_normals"])
+    rings = lay.rings()
+    _, args = W._ring_setup(lay, rings, W.WPSOptions(weight=weight),
+                            surf.normals.astype(np.float32), N)
+    b, w, rn, ra, re = W._outputs(2, N)
+    K.plain_rings(I.reshape(k, N), *W._constants(lay.S.astype(np.float64), rings), *args, b,
+                  np.empty(N, np.float32), w, rn, ra, re)
+    np.testing.assert_array_equal(r.ring_weights.reshape(2, N), w)
+    np.testing.assert_array_equal(r.ring_normals, rn.reshape(2, H, Wd, 3))
+    np.testing.assert_array_equal(r.ring_albedo, ra.reshape(2, H, Wd))
+    np.testing.assert_array_equal(r.ring_residual, re.reshape(2, H, Wd))
+    assert r.ring_normals is r.ring_normals

@@ -1,81 +1,38 @@
 """Compiled per-pixel kernels of WPS (:mod:`psbench.solve.methods.wps`).
 
 One pass over the images solves every ring, measures its residual, weighs the rings and
-fuses them (Eqs. 4.3-4.16). Pixels are processed in blocks of :data:`BLOCK`: within a
-block the loops over pixels are innermost, so they compile to SIMD code, and the
-block's images stay in cache between the ring solves and their residuals. Arithmetic
+fuses them (Eqs. 4.3-4.16); the ring outputs come from the same pass or, on demand,
+from a pass that only solves the rings. Pixels are processed in blocks of
+:data:`BLOCK`, :data:`TASK` blocks per parallel task: within a block the loops over
+pixels are innermost, so they compile to SIMD code, and the block's images stay in
+cache between the ring solves and their residuals. Arithmetic
 is float64 per pixel, outputs are float32. Every pixel is computed on its own (no
 cross-pixel reduction, fixed blocks), so results do not depend on the thread count.
 
-The surface-zenith sigmoid needs arccos and exp per pixel; calls into the C math library
-would stop the SIMD code (and cost ~12x more at 512^2), so both are evaluated inline
-from their Taylor series (accurate to ~1e-12, far below float32's resolution).
+The surface-zenith sigmoid needs arccos and exp per pixel: both are inline
+(:mod:`psbench.solve.methods._wps_math`), so the pixel loops stay SIMD.
 """
 from __future__ import annotations
 
 import math
-from math import factorial
 
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "weigh_rings"]
+from ._wps_math import DEG, acos, sig
+
+__all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "ring_solutions",
+           "weigh_rings"]
 
 #: pixels per block (16 images x 256 pixels float32 = 16 kB stay in L1)
 BLOCK = 256
+#: blocks per parallel task (its scratch arrays are allocated once per task)
+TASK = 16
 
 # weight kinds: "None" (shares n_j / k), the e-family (Eqs. 4.13-4.16), the oracle
 KIND_NONE, KIND_E, KIND_ORACLE = 0, 1, 2
-
-_DEG = 180.0 / math.pi
-# asin(s) = s + s z Q(z), z = s^2 <= 1/4: Taylor coefficients of Q (12 terms: error < 1e-10)
-_Q = tuple(factorial(2 * m + 2) / (4 ** (m + 1) * factorial(m + 1) ** 2 * (2 * m + 3))
-           for m in range(12))
-# exp(r) for |r| <= 100 / 256 (11 terms: error < 1e-9 after the 8 squarings)
-_E = tuple(1.0 / factorial(m) for m in range(11))
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _acos(x):
-    """arccos on [-1, 1] without a library call (vectorisable; polynomials in Estrin's
-    form for short dependency chains)."""
-    a = abs(x)
-    big = a > 0.5
-    z = 0.5 * (1.0 - a) if big else a * a
-    s = math.sqrt(z) if big else a
-    z2 = z * z
-    z4 = z2 * z2
-    p0 = (_Q[0] + _Q[1] * z) + (_Q[2] + _Q[3] * z) * z2
-    p1 = (_Q[4] + _Q[5] * z) + (_Q[6] + _Q[7] * z) * z2
-    p2 = (_Q[8] + _Q[9] * z) + (_Q[10] + _Q[11] * z) * z2
-    p = p0 + (p1 + p2 * z4) * z4
-    asn = s + s * z * p
-    r = 2.0 * asn if big else 0.5 * math.pi - asn
-    return r if x >= 0.0 else math.pi - r
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _sig(x):
-    """Eq. 4.15's sigmoid 1 / (1 + exp(-10 (x - 0.5))); 0 where exp overflows float32, as
-    the float32 formula gives."""
-    y = -10.0 * (x - 0.5)
-    r = min(max(y, -100.0), 100.0) * 0.00390625     # exp(y) = exp(y / 256)^256
-    r2 = r * r
-    r4 = r2 * r2
-    p0 = (_E[0] + _E[1] * r) + (_E[2] + _E[3] * r) * r2
-    p1 = (_E[4] + _E[5] * r) + (_E[6] + _E[7] * r) * r2
-    p2 = (_E[8] + _E[9] * r) + _E[10] * r2
-    p = p0 + (p1 + p2 * r4) * r4
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    return 0.0 if y > 88.72283935546875 else 1.0 / (1.0 + p)
-
+# outputs of a pass: fused and ring outputs, the fused ones only, the ring ones only
+_ALL, _FUSED, _RINGS = 0, 1, 2
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _solve_block(I2, lo, n, order, start, P, G, B, E2):
@@ -150,39 +107,44 @@ def _e_weights(B, E2, INV, U, s, n, src, surf, sinz, rank, inv_zscale, binary):
             t = rank[j]
             for q in range(n):
                 nz = min(max(bz[q] * inv[q], -1.0), 1.0)
-                z = _acos(nz) * (_DEG * inv_zscale)
-                u[q] *= _sig((1.0 - t) * z + t * (1.0 - z))
+                z = acos(nz) * (DEG * inv_zscale)
+                u[q] *= sig((1.0 - t) * z + t * (1.0 - z))
     if binary:
-        _one_hot(U, n)
+        _one_hot(U, n, s[0], s[1])
         return
-    s[:n] = 0.0
+    tot = s[0]
+    tot[:n] = 0.0
     for j in range(R):
         u = U[j]
         for q in range(n):
-            s[q] += u[q]
+            tot[q] += u[q]
     for j in range(R):
         u = U[j]
         for q in range(n):
-            u[q] = np.float32(u[q] / s[q])
+            u[q] = np.float32(u[q] / tot[q])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _one_hot(U, n):
+def _one_hot(U, n, best, pick):
     """Eq. 4.12: 1 at the first maximum of each pixel's weights (ties: the earlier ring;
-    a NaN stops the search, as numpy's running maximum does)."""
+    a NaN stops the search, as numpy's running maximum does). Rings in the outer loop,
+    pixels inner (selects, no branches: SIMD); ``best`` and ``pick`` are scratch (n,)."""
     R = U.shape[0]
+    u0 = U[0]
     for q in range(n):
-        best = U[0, q]
-        pick = 0
-        for j in range(1, R):
-            v = U[j, q]
-            if v > best:
-                pick = j
-                best = v
-            elif v != v:
-                best = v
-        for j in range(R):
-            U[j, q] = 1.0 if j == pick else 0.0
+        best[q] = u0[q]
+        pick[q] = 0.0
+    for j in range(1, R):
+        u = U[j]
+        for q in range(n):
+            v = u[q]
+            gt = v > best[q]
+            pick[q] = j if gt else pick[q]
+            best[q] = v if (gt or v != v) else best[q]
+    for j in range(R):
+        u = U[j]
+        for q in range(n):
+            u[q] = 1.0 if pick[q] == j else 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -190,7 +152,8 @@ def _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary):
     """Oracle weights (module docs of ``wps``): per pixel the direction of the cone of
     the ring normals closest to the truth, as weights of the b_j. Candidates (best
     single normal, best point of each arc, the truth inside a cone of three) are
-    evaluated for the whole block at once and kept where they are better."""
+    evaluated for the whole block at once and kept where they are better. (Its scratch
+    is allocated here: rows of one array given by the caller measured ~35 % slower.)"""
     R = B.shape[0]
     NN = np.empty((R, 3, BLOCK))
     CS = np.empty((R, BLOCK))
@@ -329,7 +292,7 @@ def _norms(B, n, RHO, INV):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank, inv_zscale,
                  binary, T, pairs, tris):
-    """The block's ring weights (R, n) into U."""
+    """The block's ring weights (R, n) into U (s: scratch)."""
     if kind == KIND_NONE:
         for j in range(B.shape[0]):
             U[j, :n] = share[j]
@@ -387,10 +350,9 @@ def _residual_block(B, E2, Fb, n, G, count, lo, resid):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo, ring_e):
-    """The block's outputs: b (N, 3), w (R, N), ring normals (0, 0, 1 where rho_j <=
-    1e-6), albedo and RMS residual. Interleaved arrays are written through flat views
-    (2-d indexing of a slice would not vectorise)."""
+def _store_fused(U, Fb, lo, n, with_b, b, w):
+    """The block's fused outputs: b (N, 3) (written through a flat view: 2-d indexing
+    of a slice would not vectorise) and the weights w (R, N)."""
     if with_b:
         fx, fy, fz = Fb[0], Fb[1], Fb[2]
         bo = b.reshape(-1)[3 * lo:3 * (lo + n)]
@@ -398,12 +360,21 @@ def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albed
             bo[3 * q] = fx[q]
             bo[3 * q + 1] = fy[q]
             bo[3 * q + 2] = fz[q]
-    for j in range(B.shape[0]):
-        bx, by, bz, e2, u, rho, inv = B[j, 0], B[j, 1], B[j, 2], E2[j], U[j], RHO[j], INV[j]
-        wo, alb, e = w[j, lo:lo + n], ring_albedo[j, lo:lo + n], ring_e[j, lo:lo + n]
-        nrm = ring_normals[j].reshape(-1)[3 * lo:3 * (lo + n)]
+    for j in range(U.shape[0]):
+        u, wo = U[j], w[j, lo:lo + n]
         for q in range(n):
             wo[q] = u[q]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _store_rings(B, E2, RHO, INV, lo, n, ring_normals, ring_albedo, ring_e):
+    """The block's ring outputs: normals (0, 0, 1 where rho_j <= 1e-6), albedo and RMS
+    residual of every ring."""
+    for j in range(B.shape[0]):
+        bx, by, bz, e2, rho, inv = B[j, 0], B[j, 1], B[j, 2], E2[j], RHO[j], INV[j]
+        alb, e = ring_albedo[j, lo:lo + n], ring_e[j, lo:lo + n]
+        nrm = ring_normals[j].reshape(-1)[3 * lo:3 * (lo + n)]
+        for q in range(n):
             alb[q] = rho[q]
             e[q] = math.sqrt(e2[q])
             zero = rho[q] <= 1e-6
@@ -414,8 +385,8 @@ def _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albed
 
 
 def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, rank,
-                inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
-                ring_e):
+                inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals=None,
+                ring_albedo=None, ring_e=None):
     """Every ring's least squares, residual and weight, and the fusion, in one pass over
     the images (no mask).
 
@@ -439,12 +410,36 @@ def plain_rings(I2, order, start, P, F, G, count, kind, share, src, surf, sinz, 
         triples (Q, 3) (oracle).
     b, resid, w, ring_normals, ring_albedo, ring_e : float32 outputs
         (N, 3) fused rho n, (N,) its residual norm over every image, (R, N) weights,
-        (R, N, 3), (R, N), (R, N) RMS residual e_j.
+        (R, N, 3), (R, N), (R, N) RMS residual e_j. The ring outputs are optional
+        (None: not written; :func:`ring_solutions` gives them from the same arithmetic).
     """
     R = count.shape[0]
-    _pass(True, I2, order, start, P, F, G, count, np.empty((R, 3, 0), np.float32),
+    what = _ALL
+    if ring_normals is None:
+        what = _FUSED
+        ring_normals, ring_albedo, ring_e = _no_rings(R)
+    _pass(True, what, I2, order, start, P, F, G, count, np.empty((R, 3, 0), np.float32),
           np.empty((R, 0), np.float32), kind, share, src, surf, sinz, rank, inv_zscale, binary,
           T, pairs, tris, b, resid, w, ring_normals, ring_albedo, ring_e)
+
+
+def ring_solutions(I2, order, start, P, G, count, ring_normals, ring_albedo, ring_e):
+    """Every ring's normals, albedo and RMS residual alone, bit-identical to the ring
+    outputs of :func:`plain_rings` (the same compiled solve; arguments as there)."""
+    R = count.shape[0]
+    z = np.zeros(R)
+    t0 = np.zeros((1, 3), np.float32)
+    i0 = np.zeros((0, 2), np.int64)
+    _pass(True, _RINGS, I2, order, start, P, np.zeros((R, 3, 3)), G, count,
+          np.empty((R, 3, 0), np.float32), np.empty((R, 0), np.float32), KIND_NONE, z, False,
+          False, z, z, 1.0, False, t0, i0, np.zeros((0, 3), np.int64),
+          np.empty((0, 3), np.float32), np.empty(0, np.float32), np.empty((R, 0), np.float32),
+          ring_normals, ring_albedo, ring_e)
+
+
+def _no_rings(R):
+    return (np.empty((R, 0, 3), np.float32), np.empty((R, 0), np.float32),
+            np.empty((R, 0), np.float32))
 
 
 def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, binary, T, pairs,
@@ -458,45 +453,49 @@ def weigh_rings(ring_b, e2, kind, share, src, surf, sinz, rank, inv_zscale, bina
     R = ring_b.shape[0]
     i0 = np.empty(0, np.int64)
     f0 = np.zeros((R, 3, 3))
-    _pass(False, np.empty((0, 0), np.float32), i0, i0, np.empty((0, 3)), f0, f0, i0,
+    _pass(False, _ALL, np.empty((0, 0), np.float32), i0, i0, np.empty((0, 3)), f0, f0, i0,
           np.ascontiguousarray(ring_b, np.float32), np.ascontiguousarray(e2, np.float32), kind,
           share, src, surf, sinz, rank, inv_zscale, binary, T, pairs, tris, b,
           np.empty(0, np.float32), w, ring_normals, ring_albedo, ring_e)
 
 
 @njit(cache=True, parallel=True, nogil=True, error_model="numpy")
-def _pass(plain, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src, surf, sinz,
-          rank, inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals, ring_albedo,
-          ring_e):
-    """The one compiled kernel (one compilation for both paths): ring solutions from the
-    images (``plain``) or from ``ring_b`` / ``e2``, then weights, fusion, outputs."""
+def _pass(plain, what, I2, order, start, P, F, G, count, ring_b, e2, kind, share, src, surf,
+          sinz, rank, inv_zscale, binary, T, pairs, tris, b, resid, w, ring_normals,
+          ring_albedo, ring_e):
+    """The one compiled kernel (one compilation for every path): ring solutions from the
+    images (``plain``) or from ``ring_b`` / ``e2``, then weights, fusion and the fused
+    outputs, the ring outputs, or both (``what``)."""
     R = F.shape[0]
     N = I2.shape[1] if plain else ring_b.shape[2]
     nblocks = (N + BLOCK - 1) // BLOCK
-    for blk in prange(nblocks):
-        lo = blk * BLOCK
-        n = min(BLOCK, N - lo)
+    for task in prange((nblocks + TASK - 1) // TASK):
         B = np.empty((R, 3, BLOCK))
         E2 = np.empty((R, BLOCK))
         U = np.empty((R, BLOCK))
         Fb = np.empty((3, BLOCK))
-        s = np.empty(BLOCK)
+        s = np.empty((2, BLOCK))
         RHO = np.empty((R, BLOCK))
         INV = np.empty((R, BLOCK))
-        if plain:
-            _solve_block(I2, lo, n, order, start, P, G, B, E2)
-        else:
-            for j in range(R):
-                for c in range(3):
-                    B[j, c, :n] = ring_b[j, c, lo:lo + n]
-                E2[j, :n] = e2[j, lo:lo + n]
-        _norms(B, n, RHO, INV)
-        _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank,
-                     inv_zscale, binary, T, pairs, tris)
-        with_b = plain or kind != KIND_NONE
-        if with_b:
-            _fuse_block(B, U, n, kind, F, Fb)
-        if plain:
-            _residual_block(B, E2, Fb, n, G, count, lo, resid)
-        _store(B, E2, RHO, INV, U, Fb, lo, n, with_b, b, w, ring_normals, ring_albedo,
-               ring_e)
+        for blk in range(task * TASK, min(nblocks, (task + 1) * TASK)):
+            lo = blk * BLOCK
+            n = min(BLOCK, N - lo)
+            if plain:
+                _solve_block(I2, lo, n, order, start, P, G, B, E2)
+            else:
+                for j in range(R):
+                    for c in range(3):
+                        B[j, c, :n] = ring_b[j, c, lo:lo + n]
+                    E2[j, :n] = e2[j, lo:lo + n]
+            _norms(B, n, RHO, INV)
+            if what != _RINGS:
+                _weigh_block(B, E2, RHO, INV, U, s, lo, n, kind, share, src, surf, sinz, rank,
+                             inv_zscale, binary, T, pairs, tris)
+                with_b = plain or kind != KIND_NONE
+                if with_b:
+                    _fuse_block(B, U, n, kind, F, Fb)
+                if plain:
+                    _residual_block(B, E2, Fb, n, G, count, lo, resid)
+                _store_fused(U, Fb, lo, n, with_b, b, w)
+            if what != _FUSED:
+                _store_rings(B, E2, RHO, INV, lo, n, ring_normals, ring_albedo, ring_e)

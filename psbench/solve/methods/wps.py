@@ -49,7 +49,9 @@ Decisions (where the thesis leaves room)
   engine on its own images and layout (``Problem.engine``: thresholds resolved for the
   ring's image count, ``weighted`` applied per ring). ``mask="None"`` without
   ``weighted`` solves every ring, measures its residual, weighs and fuses in one
-  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`).
+  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`); the ring
+  normals, albedo and residual are then computed when first read (the same compiled
+  ring solves again, bit-identical), as the plain PS residual is.
 
 Rings are reported in ``Layout.rings()`` order (ring id order), which is the order of
 the ring notation (``"30x8+60x8"``: ring 0 = 30 degrees).
@@ -66,7 +68,7 @@ from ..._checks import PsbenchError, choice
 from ...registry import Method
 from .. import kernel
 from .._result import Result
-from ..base import Fit, Options
+from ..base import Fit, Lazy, Options
 from . import _wps_kernel as _k
 from ._wps_weights import DEFAULT_WEIGHT, WEIGHTS
 
@@ -114,13 +116,14 @@ class WPSResult(Result):
     solves or None) with ``ring_weights`` of shape (rings, H, W) (sum 1 per pixel),
     plus ``ring_normals (rings, H, W, 3)``, ``ring_albedo (rings, H, W)``,
     ``ring_residual (rings, H, W)`` (RMS residual e_j of each ring's own solution),
-    ``weight`` and ``binary``. ``thresholds`` maps "ring0", "ring1", ... to each ring's
-    resolved thresholds (empty without masks).
+    ``weight`` and ``binary`` (without a mask the three ring outputs are computed when
+    first read, from the images given to the solve). ``thresholds`` maps "ring0",
+    "ring1", ... to each ring's resolved thresholds (empty without masks).
     """
 
-    ring_normals: np.ndarray | None = None
-    ring_albedo: np.ndarray | None = None
-    ring_residual: np.ndarray | None = None
+    ring_normals: np.ndarray | None = Lazy(None)
+    ring_albedo: np.ndarray | None = Lazy(None)
+    ring_residual: np.ndarray | None = Lazy(None)
     weight: str = DEFAULT_WEIGHT
     binary: bool = False
 
@@ -183,11 +186,10 @@ def _outputs(R, N):
             np.empty((R, N), dtype=np.float32))
 
 
-def _plain(I2, S, rings, args):
-    """Every ring's solve, residual, weights and the fusion in one pass over the images
-    (:func:`psbench.solve.methods._wps_kernel.plain_rings`)."""
-    k, N = I2.shape
-    R = len(rings)
+def _constants(S, rings):
+    """The ring solves' constants of :func:`psbench.solve.methods._wps_kernel.plain_rings`:
+    order, start, P, F, G, count."""
+    k, R = S.shape[0], len(rings)
     order = np.concatenate(rings).astype(np.int64)
     start = np.cumsum([0] + [idx.size for idx in rings]).astype(np.int64)
     P = np.empty((k, 3))
@@ -199,12 +201,47 @@ def _plain(I2, S, rings, args):
     # S^T I = sum_j G_j b_j (full-rank rings), so b = sum_j (A G_j) b_j, A = (S^T S)^-1
     A = np.linalg.inv(G.sum(0))
     F = np.einsum("ab,jbc->jac", A, G)
-    count = np.diff(start)
-    b, w, ring_normals, ring_albedo, ring_e = _outputs(R, N)
+    return order, start, P, F, G, np.diff(start)
+
+
+def _plain(I2, S, rings, args):
+    """Every ring's solve, residual, weights and the fusion in one pass over the images
+    (:func:`psbench.solve.methods._wps_kernel.plain_rings`); the ring outputs follow
+    on demand (:class:`_RingOutputs`)."""
+    N, R = I2.shape[1], len(rings)
+    order, start, P, F, G, count = _constants(S, rings)
+    I2 = np.ascontiguousarray(I2)
+    b = np.empty((N, 3), dtype=np.float32)
+    w = np.empty((R, N), dtype=np.float32)
     resid = np.empty(N, dtype=np.float32)
-    _k.plain_rings(np.ascontiguousarray(I2), order, start, P, F, G, count, *args, b, resid, w,
-                   ring_normals, ring_albedo, ring_e)
-    return b, resid, w, ring_normals, ring_albedo, ring_e
+    _k.plain_rings(I2, order, start, P, F, G, count, *args, b, resid, w)
+    return b, resid, w, _RingOutputs(I2, order, start, P, G, count)
+
+
+class _RingOutputs:
+    """The ring normals, albedo and RMS residual of the unmasked path, computed when
+    first read: most callers read only the fused result and ``ring_weights``, and
+    writing the ring outputs would cost a fifth of the solve. The second pass runs
+    the same compiled ring solves, so the values are bit-identical to a pass that
+    writes everything; like the plain PS residual, they are computed from the images
+    given to the solve."""
+
+    def __init__(self, I2, *consts):
+        self._args = (I2, *consts)
+        self._out = None
+
+    def __call__(self, i):
+        if self._out is None:
+            I2, order, start, P, G, count = self._args
+            R, N = count.shape[0], I2.shape[1]
+            ring_normals = np.empty((R, N, 3), dtype=np.float32)
+            ring_albedo = np.empty((R, N), dtype=np.float32)
+            ring_e = np.empty((R, N), dtype=np.float32)
+            _k.ring_solutions(I2, order, start, P, G, count, ring_normals, ring_albedo,
+                              ring_e)
+            self._out = (ring_normals, ring_albedo, ring_e)
+            self._args = None   # the images are no longer needed
+        return self._out[i]
 
 
 def _masked_rings(problem, rings, S, N):
@@ -264,9 +301,11 @@ def wps(problem, options):
     info = {"ring_zeniths": zen.tolist()}
     iterations, converged, thr, obs_w = 0, True, {}, None
     if plain:
-        b, resid, w, ring_normals, ring_albedo, ring_e = _plain(images.reshape(k, N), S,
-                                                                rings, args)
+        b, resid, w, lazy = _plain(images.reshape(k, N), S, rings, args)
         resid = resid.reshape(H, W)
+        ring_normals = lambda: lazy(0).reshape(R, H, W, 3)  # noqa: E731
+        ring_albedo = lambda: lazy(1).reshape(R, H, W)      # noqa: E731
+        ring_e = lambda: lazy(2).reshape(R, H, W)           # noqa: E731
         valid = np.ones((k, H, W), dtype=bool)
         tm["rings"] = time.perf_counter() - t
     else:
@@ -286,10 +325,10 @@ def wps(problem, options):
         resid = kernel.residual_norm(images, normals * albedo[..., None], S,
                                      None if valid.all() else valid)
         tm["residual"] = time.perf_counter() - t
-    fields = dict(ring_normals=ring_normals.reshape(R, H, W, 3),
-                  ring_albedo=ring_albedo.reshape(R, H, W),
-                  ring_residual=ring_e.reshape(R, H, W), weight=weight, binary=binary,
-                  thresholds=thr)
+        ring_normals = ring_normals.reshape(R, H, W, 3)
+        ring_albedo, ring_e = ring_albedo.reshape(R, H, W), ring_e.reshape(R, H, W)
+    fields = dict(ring_normals=ring_normals, ring_albedo=ring_albedo, ring_residual=ring_e,
+                  weight=weight, binary=binary, thresholds=thr)
     return Fit(b=b.reshape(H, W, 3), valid=valid, weights=obs_w, iterations=iterations,
                converged=converged, info=info, residual=resid, ring_weights=w.reshape(R, H, W),
                timings=tm, fields=fields, result_type=WPSResult)
