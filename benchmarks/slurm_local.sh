@@ -135,10 +135,18 @@ EOF
 }
 
 start_daemon() {   # name, command...: started in its own session, PID recorded
-  local name=$1
+  local name=$1 pid
   shift
   setsid "$@" < /dev/null > "$DIR/log/$name.out" 2>&1 &
-  echo "$name $!" >> "$PIDS"
+  pid=$!
+  echo "$name $pid" >> "$PIDS"
+  # until the forked shell has exec'd the daemon, its command line is this script's, and
+  # our_pids would count it as exited: wait (up to 10 s) for the exec or the exit
+  for _ in $(seq 100); do
+    [ -r "/proc/$pid/cmdline" ] || break
+    [ "$(tr '\0' ' ' < "/proc/$pid/cmdline")" != "$(tr '\0' ' ' < /proc/$$/cmdline)" ] && break
+    sleep 0.1
+  done
 }
 
 show_logs() {
