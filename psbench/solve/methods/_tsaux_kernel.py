@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._tsfit_kernel import _DX, _DY, _DZ, _HX, _HY, _HZ, _MU, BLOCK, FASTMATH, _acos, _expm
+from ._tsfit_kernel import _DX, _DY, _DZ, _MU, BLOCK, FASTMATH, _light, _model
 
 __all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample"]
 
@@ -34,18 +34,14 @@ def dark_weights(tab, n, rd, rs, m, lobe, I, valid, margin, ratio, out):
         lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
         pr = np.empty(hi - lo, dtype=np.float32)
         for i in range(k):
-            dx, dy, dz = tab[_DX, i], tab[_DY, i], tab[_DZ, i]
-            hx, hy, hz, mu = tab[_HX, i], tab[_HY, i], tab[_HZ, i], tab[_MU, i]
+            lt = _light(tab, i)
+            dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
             # the prediction in its own loop (one branch-free loop per model, so
             # each vectorises), then the test
             if lobe:
                 for p in range(lo, hi):
-                    nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
-                    c = dx * nx + dy * ny + dz * nz
-                    ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
-                    th = _acos(ch)
-                    v = float(rd[p]) * c + float(rs[p]) * _expm(float(m[p]) ** 2 * th * th)
-                    pr[p - lo] = mu * v if c > 0.0 else 0.0
+                    pr[p - lo] = _model(lt, float(n[0, p]), float(n[1, p]), float(n[2, p]),
+                                        float(rd[p]), float(rs[p]), float(m[p]) ** 2)
             else:
                 for p in range(lo, hi):
                     c = dx * float(n[0, p]) + dy * float(n[1, p]) + dz * float(n[2, p])
@@ -103,25 +99,12 @@ def near(pos, flat, W2, changed, fitted, out):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
-def _residuals(tab, bt, rs, m, bl, I, p, rt, rl):
-    """rt, rl (k,): the residuals of pixel p under the two fits of
-    :func:`choice_losses`."""
-    bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
-    rho = math.sqrt(bx * bx + by * by + bz * bz)
-    s = 1.0 / max(rho, 1e-30)
-    nx, ny, nz = bx * s, by * s, bz * s
-    m2 = float(m[p]) ** 2
-    rsp = float(rs[p])
-    lx, ly, lz = float(bl[0, p]), float(bl[1, p]), float(bl[2, p])
-    for i in range(tab.shape[1]):
-        dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
-        c = dx * nx + dy * ny + dz * nz
-        ch = min(max(tab[_HX, i] * nx + tab[_HY, i] * ny + tab[_HZ, i] * nz, -1.0), 1.0)
-        th = _acos(ch)
-        f = mu * (rho * c + rsp * _expm(m2 * th * th)) if c > 0.0 else 0.0
-        x = float(I[i, p])
-        rt[i] = x - f
-        rl[i] = x - mu * (dx * lx + dy * ly + dz * lz)
+def _choice_residuals(lt, nx, ny, nz, rho, rs, m2, lx, ly, lz, x):
+    """The residuals (Torrance-Sparrow fit, Lambertian fit) of one observation x under
+    the two fits of :func:`choice_losses`."""
+    dx, dy, dz, _, _, _, mu = lt
+    return (x - _model(lt, nx, ny, nz, rho, rs, m2),
+            x - mu * (dx * lx + dy * ly + dz * lz))
 
 
 @njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
@@ -149,20 +132,14 @@ def choice_losses(tab, bt, rs, m, bl, I, V, all_valid, cap, loss_t, loss_l):
         rt = np.empty(hi - lo)
         rl = np.empty(hi - lo)
         for i in range(k):
-            dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
-            hx, hy, hz = tab[_HX, i], tab[_HY, i], tab[_HZ, i]
+            lt = _light(tab, i)
             for p in range(lo, hi):
                 j = p - lo
-                nx, ny, nz = nrm[0, j], nrm[1, j], nrm[2, j]
-                c = dx * nx + dy * ny + dz * nz
-                ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
-                th = _acos(ch)
-                f = mu * (nrm[3, j] * c + float(rs[p]) * _expm(float(m[p]) ** 2 * th * th))
-                x = float(I[i, p])
-                r = x - (f if c > 0.0 else 0.0)
+                r, q = _choice_residuals(lt, nrm[0, j], nrm[1, j], nrm[2, j], nrm[3, j],
+                                         float(rs[p]), float(m[p]) ** 2, float(bl[0, p]),
+                                         float(bl[1, p]), float(bl[2, p]), float(I[i, p]))
                 rt[j] = min(r * r, cap)
-                r = x - mu * (dx * float(bl[0, p]) + dy * float(bl[1, p]) + dz * float(bl[2, p]))
-                rl[j] = min(r * r, cap)
+                rl[j] = min(q * q, cap)
             if all_valid:
                 for p in range(lo, hi):
                     loss_t[p] += rt[p - lo]
@@ -182,11 +159,15 @@ def choice_sample(tab, bt, rs, m, bl, I, V, all_valid, pix, abs_t, abs_l):
     Q = pix.shape[0]
     nb = (Q + BLOCK - 1) // BLOCK
     for blk in prange(nb):
-        rt, rl = np.empty(k), np.empty(k)
         for j in range(blk * BLOCK, min(Q, (blk + 1) * BLOCK)):
             p = pix[j]
-            _residuals(tab, bt, rs, m, bl, I, p, rt, rl)
+            bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
+            rho = math.sqrt(bx * bx + by * by + bz * bz)
+            s = 1.0 / max(rho, 1e-30)
             for i in range(k):
+                r, q = _choice_residuals(_light(tab, i), bx * s, by * s, bz * s, rho,
+                                         float(rs[p]), float(m[p]) ** 2, float(bl[0, p]),
+                                         float(bl[1, p]), float(bl[2, p]), float(I[i, p]))
                 ok = all_valid or V[i, p]
-                abs_t[i, j] = abs(rt[i]) if ok else math.nan
-                abs_l[i, j] = abs(rl[i]) if ok else math.nan
+                abs_t[i, j] = abs(r) if ok else math.nan
+                abs_l[i, j] = abs(q) if ok else math.nan

@@ -77,6 +77,27 @@ def _expm(a):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
+def _model(lt, nx, ny, nz, rd, rs, m2):
+    """The model's value for one light at the unit normal n with rho_d, rho_s and m^2:
+    mu [rd (d . n) + rs exp(-m^2 theta^2)], 0 in self shadow. ``lt``: the light's
+    column of the table as a tuple (dx, dy, dz, hx, hy, hz, mu), read once per light
+    by the caller (outside its pixel loop, which then vectorises)."""
+    dx, dy, dz, hx, hy, hz, mu = lt
+    c = dx * nx + dy * ny + dz * nz
+    ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
+    th = _acos(ch)
+    v = mu * (rd * c + rs * _expm(m2 * th * th))
+    return v if c > 0.0 else 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _light(tab, i):
+    """Column i of the light table as the tuple :func:`_model` takes."""
+    return (tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_HX, i], tab[_HY, i], tab[_HZ, i],
+            tab[_MU, i])
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
 def _tangents(nx, ny, nz, t):
     """Orthonormal tangent basis t (2, 3) at the unit normal n, branch-free up to the
     sign of nz and without a square root (Duff et al., JCGT 2017)."""
@@ -441,13 +462,7 @@ def predict(tab, n, rd, rs, m, out):
     for blk in prange(nb):
         lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
         for i in range(k):
-            dx, dy, dz = tab[_DX, i], tab[_DY, i], tab[_DZ, i]
-            hx, hy, hz, mu = tab[_HX, i], tab[_HY, i], tab[_HZ, i], tab[_MU, i]
+            lt = _light(tab, i)
             for p in range(lo, hi):
-                nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
-                c = dx * nx + dy * ny + dz * nz
-                ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
-                th = _acos(ch)
-                e = _expm(float(m[p]) ** 2 * th * th)
-                v = mu * (float(rd[p]) * c + float(rs[p]) * e)
-                out[i, p] = v if c > 0.0 else 0.0
+                out[i, p] = _model(lt, float(n[0, p]), float(n[1, p]), float(n[2, p]),
+                                   float(rd[p]), float(rs[p]), float(m[p]) ** 2)

@@ -60,10 +60,10 @@ def _grid(H=40, W=50, seed=1):
     n = rng.normal(size=(3, idx.size))
     n[2] = np.abs(n[2]) + 1
     n = (n / np.linalg.norm(n, axis=0)).astype(np.float32)
-    return _tsprop.Grid(idx, (H, W), fitted), n, obj
+    return _tsprop.Grid(idx, (H, W), fitted), n
 
 
-def _mean_reference(grid, n, obj):
+def _mean_reference(grid, n):
     H, W = grid.shape
     full = np.zeros((3, H + 2, W + 2))
     fi = np.zeros((H, W), bool)
@@ -81,9 +81,9 @@ def _mean_reference(grid, n, obj):
 
 
 def test_neighbour_mean_and_near_match_numpy():
-    grid, n, obj = _grid()
+    grid, n = _grid()
     ang, mean = grid.disagreement(n)
-    ref_ang, ref_mean = _mean_reference(grid, n, obj)
+    ref_ang, ref_mean = _mean_reference(grid, n)
     np.testing.assert_array_equal(np.isnan(ang), np.isnan(ref_ang))
     ok = ~np.isnan(ang)
     np.testing.assert_allclose(ang[ok], ref_ang[ok], atol=1e-5)
@@ -104,7 +104,7 @@ def test_neighbour_mean_and_near_match_numpy():
 def test_independent_of_thread_count():
     L, n, rd, rs, m, I, valid = _pixels(p=20000)
     sigma = np.full(L.k, 0.03, np.float32)
-    grid, gn, _ = _grid(H=150, W=140)
+    grid, gn = _grid(H=150, W=140)
     before = numba.get_num_threads()
     out = []
     try:
