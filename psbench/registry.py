@@ -4,14 +4,14 @@ psbench grows by adding modules, not by editing lists. Each piece is a small fro
 spec object (:class:`Mask`, :class:`Method`, :class:`Experiment`, :class:`SurfaceSpec`)
 published through a Python entry-point group:
 
-=================  =========================  ===========================================
-group              entry-point value          loaded object
-=================  =========================  ===========================================
-psbench.masks      ``pkg.module:MASK``        :class:`Mask`
-psbench.methods    ``pkg.module:METHOD``      :class:`Method`
-psbench.experiments ``pkg.module``            a module (wrapped in :class:`Experiment`)
-psbench.surfaces   ``pkg.module:SURFACE``     :class:`SurfaceSpec`
-=================  =========================  ===========================================
+===================  =========================  ===========================================
+group                entry-point value          loaded object
+===================  =========================  ===========================================
+psbench.masks        ``pkg.module:MASK``        :class:`Mask`
+psbench.methods      ``pkg.module:METHOD``      :class:`Method`
+psbench.experiments  ``pkg.module``             a module (wrapped in :class:`Experiment`)
+psbench.surfaces     ``pkg.module:SURFACE``     :class:`SurfaceSpec`
+===================  =========================  ===========================================
 
 psbench's own pieces are declared in its ``pyproject.toml`` under the same groups, so a
 third-party package extends psbench exactly as psbench extends itself (as pytest and
