@@ -78,7 +78,8 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": [],
 }
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["psbench.css"]
 html_show_sourcelink = False
 
 

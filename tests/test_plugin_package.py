@@ -1,12 +1,12 @@
-"""The README's "Writing a plug-in" package, installed and used end to end.
+"""The user guide's "Writing a plug-in" package, installed and used end to end.
 
-The code blocks of that README section (each starts with ``# psbplug/<file>``, the
+The code blocks of that page (``docs/guide/plugins.md``) (each starts with ``# psbplug/<file>``, the
 entry points with ``# pyproject.toml of psbplug``) are written to a temporary folder
 with the ``*.dist-info`` that ``pip install`` leaves behind (METADATA and
 ``entry_points.txt``) and put on ``sys.path``. Its mask, method, surface and experiment
 must then work through ``ps.solve``, the ``psbench`` command line (run, ``--help``,
 ``+experiment=``) and ``psbench-report`` without any list in psbench being edited. The
-README therefore cannot drift from what works.
+page therefore cannot drift from what works.
 """
 from __future__ import annotations
 
@@ -26,15 +26,13 @@ from psbench.harness.app import main
 from psbench.harness.store import read_store
 from psbench.report.cli import build
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "plugins.md"
 GROUPS = ("masks", "methods", "surfaces", "experiments")
 
 
 def _blocks():
-    """``{first-line tag: code}`` of the fenced blocks of the plug-in section."""
-    text = README.read_text()
-    section = text[text.index("## Writing a plug-in"):]
-    section = section[:section.index("\n## ", 4)]
+    """``{first-line tag: code}`` of the fenced blocks of the plug-in page."""
+    section = PAGE.read_text()
     out = {}
     for lang, body in re.findall(r"```(\w+)\n(.*?)```", section, flags=re.S):
         first, _, rest = body.partition("\n")

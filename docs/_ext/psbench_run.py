@@ -13,6 +13,7 @@ directives are rebuilt on every build (never served from the environment cache).
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -48,13 +49,15 @@ def _environ(folder):
 
 
 def _shorten(text, folder):
-    return text.replace(str(folder) + os.sep, "…/").replace(str(folder), "…")
+    text = text.replace(str(folder) + os.sep, "…/").replace(str(folder), "…")
+    data = os.environ.get("PSBENCH_DATA")
+    return text.replace(data.rstrip(os.sep), "$PSBENCH_DATA") if data else text
 
 
 class _Run(SphinxDirective):
     has_content = True
     option_spec = {"hide-output": directives.flag, "stderr": directives.flag,
-                   "image": directives.unchanged}
+                   "image": directives.unchanged, "drop": directives.unchanged}
 
     def _execute(self, argv, shown):
         folder = _workdir(self.env, self.env.docname)
@@ -75,6 +78,9 @@ class _Run(SphinxDirective):
                            location=self.get_location())
             return None
         out = proc.stdout + (proc.stderr if "stderr" in self.options else "")
+        if "drop" in self.options:  # lines the page says it leaves out
+            drop = re.compile(self.options["drop"])
+            out = "".join(ln for ln in out.splitlines(True) if not drop.search(ln))
         return _shorten(out.rstrip("\n"), folder)
 
 

@@ -15,7 +15,7 @@ import psbench as ps
 
 surf = ps.make_surface("sombrero2", size=128)
 lay = ps.layout("30x8+60x8")
-scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0)
+scene = ps.render(surf, lay, model="ts", noise=0.01, seed=0)
 
 masks = ["None", "Th", "Th-Hi-Re-Sh"]
 results = {m: ps.solve(scene.images, lay, mask=m, object_mask=surf.object_mask) for m in masks}
@@ -31,7 +31,7 @@ for ax, (m, res) in zip(axes, results.items()):
     im = ax.imshow(np.where(surf.object_mask, err, np.nan), cmap="magma", vmin=0, vmax=20)
     ax.set_title(m)
     ax.axis("off")
-fig.colorbar(im, ax=axes, label="NE (deg)", shrink=0.9)
+cbar = fig.colorbar(im, ax=axes, label="NE (deg)", shrink=0.9)
 
 # %%
 # What ``Th-Hi-Re-Sh`` excluded in one image (white) beside the true highlights and
