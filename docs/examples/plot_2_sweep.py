@@ -30,7 +30,7 @@ sheet = plt.imread(store / "out" / "masks_by_zenith" / "comparison.png")
 fig = plt.figure(figsize=(10, 10 * sheet.shape[0] / sheet.shape[1]))
 ax = fig.add_axes([0, 0, 1, 1])
 ax.imshow(sheet)
-ax.axis("off")
+_ = ax.axis("off")
 
 # %%
 # The same rows, read back from the store with pandas

@@ -38,14 +38,25 @@ for name, case in [("sister", sister), ("other gun", other)]:
     print(f"{name:10s} CCFmax {m.ccf:.2f}  rotation {m.angle:5.1f} deg")
 
 # %%
-# One of the 16 images and the reconstructed heights of the sister
+# One of the 16 images, and the breech-face topography the comparison sees (heights
+# band-passed 16-250 µm, inside the breech-face region): the reference case's true
+# heights beside the sister's reconstruction
+from psbench.forensic import bandpass
+
 acq, z = results["sister"]
+bf_sis = sister.regions["breech_face"]
+panels = [(bandpass(reference.height_um, bf_ref, pixel_size=reference.pixel_size), bf_ref,
+           "reference, true (band-passed)"),
+          (bandpass(z, bf_sis, pixel_size=sister.pixel_size), bf_sis,
+           "sister, reconstructed (band-passed)")]
 fig, axes = plt.subplots(1, 3, figsize=(12, 4), layout="constrained")
 axes[0].imshow(acq.images[0], cmap="gray")
-axes[0].set_title("image 1 of 16 (8-bit)")
-for ax, (h, title) in zip(axes[1:], [(sister.height_um, "true heights"), (z, "reconstructed")]):
-    h = np.where(sister.object_mask, h - np.median(h[sister.object_mask]), np.nan)
-    im = ax.imshow(h, cmap="cividis", vmin=np.nanpercentile(h, 1), vmax=np.nanpercentile(h, 99))
+axes[0].set_title("sister: image 1 of 16 (8-bit)")
+for ax, (h, region, title) in zip(axes[1:], panels):
+    rows, cols = np.nonzero(region)
+    h = np.where(region, h, np.nan)[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
+    lim = np.nanpercentile(np.abs(h), 99)
+    im = ax.imshow(h, cmap="RdBu_r", vmin=-lim, vmax=lim)
     ax.set_title(title)
     fig.colorbar(im, ax=ax, label="height (µm)", shrink=0.8)
 for ax in axes:
