@@ -9,6 +9,9 @@
   plane correction (Section 1.4).
 - :func:`bandpass`, :func:`register`, :func:`compare` -- band-passed breech-face
   topography, registration over rotation and translation, CCFmax.
+- :func:`read_guns`, :func:`match_pixel_size`, :func:`match_topographies` -- folders of real
+  X3P scans with their ``guns.csv`` (``$PSBENCH_X3P``), one pixel size per compared pair
+  (:mod:`psbench.forensic.scans`).
 - :func:`evaluate`, :func:`reconstruct`, :func:`score_pairs`, :func:`separation` -- the
   Chapter 7 evaluation as tidy tables (:mod:`psbench.forensic.pipeline`).
 """
@@ -18,13 +21,14 @@ from .identify import LONG_CUTOFF, SHORT_CUTOFF, Match, bandpass, compare, ncc, 
 from .plane import (Plane, estimate_plane, level, level_sample, reorient, rotate_surface,
                     tilt_surface)
 from .presets import ACQUISITION, FINISH_PRESETS, Acquisition, Finish, acquire
+from .scans import match_pixel_size, match_topographies, read_guns
 
 __all__ = ["Cartridge", "make_cartridge", "REGIONS", "FINISHES", "CASE_DIAMETER",
            "PRIMER_RADIUS", "DEFAULT_PIXEL_SIZE", "Finish", "FINISH_PRESETS", "ACQUISITION",
            "Acquisition", "acquire", "Plane", "estimate_plane", "level", "level_sample",
            "tilt_surface", "rotate_surface",
            "reorient", "bandpass", "register", "compare", "ncc", "Match", "SHORT_CUTOFF",
-           "LONG_CUTOFF", "pipeline"]
+           "LONG_CUTOFF", "pipeline", "read_guns", "match_pixel_size", "match_topographies"]
 
 
 def __getattr__(name):
