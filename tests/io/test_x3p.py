@@ -276,3 +276,16 @@ def test_real_scan_as_surface():
     assert np.array_equal(s.object_mask, t.valid)
     assert np.allclose(s.height[t.valid], t.height[t.valid] / t.pixel_size, rtol=1e-5, atol=1e-6)
 
+
+
+def test_other_reader_reads_psbench_files(tmp_path):
+    """surfalize (an independent X3P reader) sees the same grid, heights and holes."""
+    surfalize = pytest.importorskip("surfalize", reason="surfalize is not installed "
+                                    "(pip install surfalize) to cross-check X3P files")
+    z = _height((20, 30))
+    path = ps.io.write_x3p(tmp_path / "x.x3p", z, pixel_size=6.25)
+    s = surfalize.Surface.load(path)
+    assert s.data.shape == z.shape
+    assert s.step_x == pytest.approx(6.25) and s.step_y == pytest.approx(6.25)  # um
+    assert np.array_equal(np.isnan(s.data), np.isnan(z))
+    assert np.allclose(s.data[np.isfinite(z)], z[np.isfinite(z)], atol=1e-6)
