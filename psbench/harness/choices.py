@@ -97,7 +97,7 @@ def check_surface(value, params):
     valid = surfaces()
     if valid and value not in valid:
         raise PsbenchError(f"surface={value!r} is not known; valid choices: {', '.join(valid)} "
-                           f"or a path to a .npy / 16-bit .png height map")
+                           f"or a path to a .npy / 16-bit .png height map or an .x3p topography")
 
 
 def check_data(value, params):

@@ -61,12 +61,12 @@ from ._make import make_surface, surface_from_file, surface_from_height
 from ._preview import main, write_preview
 from ._sombrero import SOMBRERO_HALF, SOMBRERO_LAMBDA, SOMBRERO_PEAKS, sombrero_lambda
 from ._surface import MIN_SIZE, Surface, normals_from_height, pixel_grid
-from ._topography import Topography, surface_from_topography
+from ._topography import Topography, read_topography, surface_from_topography
 
 __all__ = ["Surface", "SURFACES", "SOMBRERO_LAMBDA", "SOMBRERO_PEAKS", "SOMBRERO_HALF",
            "MIN_SIZE", "make_surface", "surface_from_height", "surface_from_file",
            "normals_from_height", "pixel_grid", "sombrero_lambda", "write_preview", "main",
-           "Topography", "surface_from_topography"]
+           "Topography", "read_topography", "surface_from_topography"]
 
 
 def __getattr__(name):
