@@ -128,29 +128,25 @@ def _compare(args):
         print(json.dumps(out))
     else:
         pose = out["pose"]
+        verdict = "match" if out["match"] else "no match"
         print(f"{out['a']} vs {out['b']}: CCFmax {out['ccf']:.3f} | CMC {out['count']} of "
-              f"{out['cells']} cells | pose dx {pose['dx_um']:+.1f} um, dy {pose['dy_um']:+.1f} "
-              f"um, theta {pose['theta_deg']:+.1f} deg | pixel {out['pixel_size']:g} um")
+              f"{out['cells']} cells ({verdict}) | pose dx {pose['dx_um']:+.1f} um, "
+              f"dy {pose['dy_um']:+.1f} um (down), theta {pose['theta_deg']:+.1f} deg | "
+              f"pixel {out['pixel_size']:g} um")
         if picture is not None:
             print(f"picture: {picture}")
     return 0
 
 
 def _summary(res, a, b, args):
-    pose = _pose(res.pose)
+    """The comparison as a JSON-able dict; the pose in µm (dx right, dy down) and degrees."""
+    px = float(a.pixel_size)
+    pose = {"dx_um": float(res.pose.dx) * px, "dy_um": float(res.pose.dy) * px,
+            "theta_deg": float(res.pose.theta)}
     return {"a": Path(args.a).name, "b": Path(args.b).name, "ccf": float(res.ccf),
             "count": int(res.count), "cells": int(len(res.cells)),
-            "pose": pose, "pixel_size": float(a.pixel_size)}
-
-
-def _pose(pose):
-    """The consensus pose as a dict of dx_um, dy_um, theta_deg (None when there is none)."""
-    keys = ("dx_um", "dy_um", "theta_deg")
-    if pose is None:
-        return dict.fromkeys(keys)
-    if isinstance(pose, dict):
-        return {k: None if pose.get(k) is None else float(pose[k]) for k in keys}
-    return {k: None if getattr(pose, k, None) is None else float(getattr(pose, k)) for k in keys}
+            "match": bool(res.match), "pose": pose,
+            "pixel_size": px}
 
 
 # ----------------------------------------------------------------------------- reconstruct
