@@ -9,11 +9,14 @@
   plane correction (Section 1.4).
 - :func:`bandpass`, :func:`register`, :func:`compare` -- band-passed breech-face
   topography, registration over rotation and translation, CCFmax.
+- :func:`cmc` -- congruent matching cells (Song 2013; cmcR's defaults): count, cells,
+  consensus pose, CCFmax.
 - :func:`evaluate`, :func:`reconstruct`, :func:`score_pairs`, :func:`separation` -- the
   Chapter 7 evaluation as tidy tables (:mod:`psbench.forensic.pipeline`).
 """
 from .cartridge import (CASE_DIAMETER, DEFAULT_PIXEL_SIZE, FINISHES, PRIMER_RADIUS, REGIONS,
                         Cartridge, make_cartridge)
+from .cmc import CMC_THRESHOLD, CmcResult, Pose, cmc
 from .identify import LONG_CUTOFF, SHORT_CUTOFF, Match, bandpass, compare, ncc, register
 from .plane import (Plane, estimate_plane, level, level_sample, reorient, rotate_surface,
                     tilt_surface)
@@ -24,7 +27,7 @@ __all__ = ["Cartridge", "make_cartridge", "REGIONS", "FINISHES", "CASE_DIAMETER"
            "Acquisition", "acquire", "Plane", "estimate_plane", "level", "level_sample",
            "tilt_surface", "rotate_surface",
            "reorient", "bandpass", "register", "compare", "ncc", "Match", "SHORT_CUTOFF",
-           "LONG_CUTOFF", "pipeline"]
+           "LONG_CUTOFF", "cmc", "CmcResult", "Pose", "CMC_THRESHOLD", "pipeline"]
 
 
 def __getattr__(name):
