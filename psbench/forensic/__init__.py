@@ -9,6 +9,8 @@
   plane correction (Section 1.4).
 - :func:`bandpass`, :func:`register`, :func:`compare` -- band-passed breech-face
   topography, registration over rotation and translation, CCFmax.
+- :func:`cmc` -- congruent matching cells (Song 2013; cmcR's defaults): count, cells,
+  consensus pose, CCFmax.
 - :func:`read_guns`, :func:`match_pixel_size`, :func:`match_topographies` -- folders of real
   X3P scans with their ``guns.csv`` (``$PSBENCH_X3P``), one pixel size per compared pair
   (:mod:`psbench.forensic.scans`).
@@ -17,6 +19,7 @@
 """
 from .cartridge import (CASE_DIAMETER, DEFAULT_PIXEL_SIZE, FINISHES, PRIMER_RADIUS, REGIONS,
                         Cartridge, make_cartridge)
+from .cmc import CMC_THRESHOLD, CmcResult, Pose, cmc
 from .identify import LONG_CUTOFF, SHORT_CUTOFF, Match, bandpass, compare, ncc, register
 from .plane import (Plane, estimate_plane, level, level_sample, reorient, rotate_surface,
                     tilt_surface)
@@ -28,7 +31,8 @@ __all__ = ["Cartridge", "make_cartridge", "REGIONS", "FINISHES", "CASE_DIAMETER"
            "Acquisition", "acquire", "Plane", "estimate_plane", "level", "level_sample",
            "tilt_surface", "rotate_surface",
            "reorient", "bandpass", "register", "compare", "ncc", "Match", "SHORT_CUTOFF",
-           "LONG_CUTOFF", "pipeline", "read_guns", "match_pixel_size", "match_topographies"]
+           "LONG_CUTOFF", "cmc", "CmcResult", "Pose", "CMC_THRESHOLD", "pipeline", "read_guns",
+           "match_pixel_size", "match_topographies"]
 
 
 def __getattr__(name):
