@@ -14,6 +14,8 @@
 - :func:`read_guns`, :func:`match_pixel_size`, :func:`match_topographies` -- folders of real
   X3P scans with their ``guns.csv`` (``$PSBENCH_X3P``), one pixel size per compared pair
   (:mod:`psbench.forensic.scans`).
+- :func:`reconstruct_heights` -- psbench's recipe for breech-face heights in µm
+  (overexposed images left out, least squares, Poisson); :mod:`.breechface` the real study.
 - :func:`evaluate`, :func:`reconstruct`, :func:`score_pairs`, :func:`separation` -- the
   Chapter 7 evaluation as tidy tables (:mod:`psbench.forensic.pipeline`).
 """
@@ -23,6 +25,7 @@ from .cmc import CMC_THRESHOLD, CmcResult, Pose, cmc
 from .identify import LONG_CUTOFF, SHORT_CUTOFF, Match, bandpass, compare, ncc, register
 from .plane import (Plane, estimate_plane, level, level_sample, reorient, rotate_surface,
                     tilt_surface)
+from .recipe import MAX_CLIPPED, reconstruct_heights
 from .presets import ACQUISITION, FINISH_PRESETS, Acquisition, Finish, acquire
 from .scans import match_pixel_size, match_topographies, read_guns
 
@@ -31,7 +34,7 @@ __all__ = ["Cartridge", "make_cartridge", "REGIONS", "FINISHES", "CASE_DIAMETER"
            "Acquisition", "acquire", "Plane", "estimate_plane", "level", "level_sample",
            "tilt_surface", "rotate_surface",
            "reorient", "bandpass", "register", "compare", "ncc", "Match", "SHORT_CUTOFF",
-           "LONG_CUTOFF", "cmc", "CmcResult", "Pose", "CMC_THRESHOLD", "pipeline", "read_guns",
+           "LONG_CUTOFF", "cmc", "reconstruct_heights", "MAX_CLIPPED", "CmcResult", "Pose", "CMC_THRESHOLD", "pipeline", "read_guns",
            "match_pixel_size", "match_topographies"]
 
 
