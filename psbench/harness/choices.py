@@ -101,6 +101,9 @@ def check_surface(value, params):
 
 
 def check_data(value, params):
+    if str(value).lower().endswith(".x3p"):
+        raise PsbenchError(f"data={value!r} is a topography, not a folder of images; render "
+                           f"it with surface={Path(value).name}")
     if not Path(value).is_dir():
         raise PsbenchError(f"data={value!r} is not a folder")
 
