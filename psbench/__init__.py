@@ -25,7 +25,8 @@ from .metrics import (intensity_error, normal_error, normal_error_map, normal_er
                       quality_factor)
 from .render import Scene, render, shadow_map
 from .solve import Result, solve
-from .surfaces import Surface, make_surface, surface_from_file, surface_from_height
+from .surfaces import (Surface, Topography, make_surface, surface_from_file, surface_from_height,
+                       surface_from_topography)
 
 moved_modules()  # old paths of moved public modules, one release behind a warning
 
@@ -37,6 +38,7 @@ __all__ = ["PsbenchError", "__version__", "integrate", "Layout", "cond", "layout
            "intensity_error", "normal_error", "normal_error_map", "normal_error_stats",
            "quality_factor", "Scene", "render", "shadow_map", "Result", "solve", "SURFACES",
            "Surface", "make_surface", "surface_from_file", "surface_from_height",
+           "Topography", "surface_from_topography",
            *sorted(_LAZY)]
 
 

@@ -152,12 +152,18 @@ class Method:
 
 @dataclass(frozen=True)
 class SurfaceSpec:
-    """A named test surface: ``func(size, **kw) -> Surface``."""
+    """A named test surface: ``func(size, **kw) -> Surface``.
+
+    ``min_size`` is the smallest ``size`` its generator accepts with its default options
+    (16 for most; a cartridge case needs enough pixels for its marks): the command line's
+    dry runs build their miniature scenes at it.
+    """
 
     name: str
     func: Callable
     help: str = ""
     aliases: tuple[str, ...] = ()
+    min_size: int = 16
 
 
 @dataclass(frozen=True)

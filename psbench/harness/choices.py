@@ -97,10 +97,13 @@ def check_surface(value, params):
     valid = surfaces()
     if valid and value not in valid:
         raise PsbenchError(f"surface={value!r} is not known; valid choices: {', '.join(valid)} "
-                           f"or a path to a .npy / 16-bit .png height map")
+                           f"or a path to a .npy / 16-bit .png height map or an .x3p topography")
 
 
 def check_data(value, params):
+    if str(value).lower().endswith(".x3p"):
+        raise PsbenchError(f"data={value!r} is a topography, not a folder of images; render "
+                           f"it with surface={Path(value).name}")
     if not Path(value).is_dir():
         raise PsbenchError(f"data={value!r} is not a folder")
 

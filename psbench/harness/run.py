@@ -95,6 +95,7 @@ class _Scene:
         t0 = time.perf_counter()
         self.truth = None
         self.lights_read = None     # data runs with lights=: what select_lights picked
+        self.pixel_size = None      # um per pixel when known: heights also go to height.x3p
         if p["data"] is not None:
             from ..io import read_dataset
 
@@ -106,13 +107,22 @@ class _Scene:
                 _warn_far_lights(p["data"], self.lights_read)
             self.mask = ds.object_mask
             self.normals = getattr(ds, "normals", None)
+            self.pixel_size = ds.meta.get("pixel_size_um")
         else:
             from ..lights import layout
             from ..render.scene import render
             from ..surfaces import make_surface, surface_from_file
 
             s = p["surface"]
-            surf = surface_from_file(s) if os.path.isabs(s) else make_surface(s, size=p["size"])
+            if s.lower().endswith(".x3p"):  # a measured topography: its pixel size is known
+                from ..surfaces import read_topography, surface_from_topography
+
+                topo = read_topography(s)
+                surf, self.pixel_size = surface_from_topography(topo), topo.pixel_size
+            else:
+                surf = (surface_from_file(s) if os.path.isabs(s)
+                        else make_surface(s, size=p["size"]))
+                self.pixel_size = getattr(surf, "pixel_size", None)  # a cartridge case's
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
                            seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)

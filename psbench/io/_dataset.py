@@ -84,7 +84,9 @@ class Dataset:
     names : list of str
         Image file names.
     meta : dict
-        ``psbench.json`` contents plus ``"calibrated"`` (bool) and ``"format"``.
+        ``psbench.json`` contents plus ``"calibrated"`` (bool) and ``"format"``;
+        ``"pixel_size_um"`` (µm per pixel) when ``psbench.json`` gives it or the applied
+        calibration measured it.
     path : Path
     """
 
@@ -291,6 +293,8 @@ def read_dataset(path, *, calibration="auto", bits=None, unit_tol=1e-3):
         meta["calibrated"] = True
         meta["calibration_path"] = str(calib_path)
         meta["calibration_steps"] = calib.steps()
+        if calib.pixel_size is not None:  # measured in mm per pixel
+            meta["pixel_size_um"] = float(calib.pixel_size) * 1000.0
     lights = layout(dirs, ring=ring, positions=positions)
     return Dataset(images=images, lights=lights, object_mask=object_mask, normals=normals,
                    names=names,
