@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -17,6 +18,8 @@ REPO = HERE.parent
 sys.path.insert(0, str(HERE / "_ext"))
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# API stubs are regenerated on every build, so a name dropped from a list leaves no page behind
+shutil.rmtree(HERE / "api" / "generated", ignore_errors=True)
 # the real-data pages and examples read DiLiGenT's cat: $PSBENCH_DATA (the folder holding
 # diligent/cat), else ../shared/data beside the repository, as the tests do
 os.environ.setdefault("PSBENCH_DATA", str((REPO.parent / "shared" / "data").resolve()))
