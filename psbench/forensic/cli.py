@@ -8,10 +8,9 @@
     of the two band-passed scans with the cells drawn on both.
 ``psbench-forensic reconstruct FOLDER --out heights.x3p``
     Reads a DiLiGenT-layout folder or a rig capture (:func:`psbench.io.read_dataset`,
-    its calibration applied), reconstructs the heights in µm (the recommended recipe
-    :func:`psbench.forensic.reconstruct_heights` when this installation has it, else least
-    squares + Poisson integration + plane correction) and writes them as X3P with a
-    shaded PNG. The pixel size comes from ``--pixel-size``, else the capture's
+    its calibration applied), reconstructs the heights in µm with the recommended recipe
+    (:func:`psbench.forensic.reconstruct_heights`, its defaults) and writes them as X3P
+    with a shaded PNG. The pixel size comes from ``--pixel-size``, else the capture's
     ``psbench.json`` (``pixel_size_um``) or its calibration.
 
 Errors are one line (``psbench-forensic: error: ...``, exit status 2), progress goes to
@@ -29,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["main"]
 
@@ -171,30 +170,11 @@ def _pixel_size(args, ds):
     return px, "the calibration" if ds.meta.get("calibrated") else "psbench.json"
 
 
-def _heights_um(images, lights, object_mask, pixel_size):
-    """Heights in µm: the recommended recipe when present, else least squares + Poisson +
-    plane correction. Returns (heights, how)."""
-    try:
-        from . import reconstruct_heights
-    except ImportError:
-        pass
-    else:
-        z = reconstruct_heights(images, lights, object_mask=object_mask, pixel_size=pixel_size)
-        return np.asarray(z, np.float32), "psbench.forensic.reconstruct_heights"
-    from ..integrate import integrate
-    from ..solve import solve
-    from .plane import level
-
-    res = solve(images, lights, mask="None", object_mask=object_mask)
-    h = integrate(res.normals, object_mask=object_mask, method="poisson") * pixel_size
-    z, _ = level(h, object_mask, pixel_size=pixel_size)
-    return z, "least squares + Poisson + plane correction"
-
-
 def _reconstruct(args):
     from ..io import read_dataset, write_x3p
     from ..io._pictures import titled, write_png
     from ..io._relief import height_picture
+    from .recipe import reconstruct_heights
 
     out = Path(args.out)
     if out.suffix.lower() != ".x3p":
@@ -215,8 +195,9 @@ def _reconstruct(args):
     _progress(f"read {k} images of {W} x {H}{cal}; pixel {px:g} um from {source}", t0)
     t1 = time.perf_counter()
     m = np.asarray(ds.object_mask, bool)
-    z, how = _heights_um(ds.images, ds.lights, m, px)
-    _progress(f"reconstructed by {how}", t1)
+    z = reconstruct_heights(ds.images, ds.lights, object_mask=m, pixel_size=px)
+    how = "psbench.forensic.reconstruct_heights"
+    _progress(f"reconstructed by {how} (the recommended recipe)", t1)
     z = np.where(m, z, np.nan).astype(np.float32)
     meta = {"comment": f"reconstructed by psbench ({how}) from {folder.name}"}
     if args.creator:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["LEVELS", "MARKER", "level", "run_dir", "sweep_dir", "check_dir", "present",
            "write_run", "read_run_info"]
@@ -112,7 +112,7 @@ def write_run(path, *, lvl, row, result, scene, line) -> float:
     """
     from ..io import atomic_dir, write_outputs
     from ..io._common import json_default
-    from .._fs import atomic_write
+    from .._shared.files import atomic_write
     from . import spec as S
 
     t0 = time.perf_counter()

@@ -21,7 +21,7 @@ import os
 import warnings
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from .params import validate
 
 __all__ = ["preflight", "dry_run", "memory_estimate", "available_memory", "MINI"]
@@ -139,7 +139,7 @@ def _mini_scene(p):
     """(images, lights, object_mask) of run ``p``'s scene at 16 x 16 (None when a data
     folder's lights cannot be read cheaply)."""
     from ..lights import layout
-    from ..render import render
+    from ..render.scene import render
     from ..surfaces import make_surface
 
     with warnings.catch_warnings():

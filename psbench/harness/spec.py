@@ -34,7 +34,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import choices as C
 
 __all__ = ["Param", "PARAMS", "SETTINGS", "SPEC", "KINDS", "EXTRAS", "LAUNCHERS", "HYDRA_NODE",

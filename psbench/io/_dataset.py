@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
-from .._deprecate import warn_renamed
+from .._shared.checks import PsbenchError
+from .._shared.deprecation import warn_renamed
 from ..calibrate._calibration import apply_calibration
 from ._calibration import load_calibration
 from ._common import IMAGE_EXT, LUMA, PsbenchWarning, cv2 as _cv2

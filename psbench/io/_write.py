@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images, as_mask
-from .._deprecate import renamed_args
-from .._fs import atomic_write
+from .._shared.checks import PsbenchError, as_images, as_mask
+from .._shared.deprecation import renamed_args
+from .._shared.files import atomic_write
 from ._common import PsbenchWarning, json_default
 from ._images import write_image
 from ._pictures import NORMAL_CODES, encode_normals
@@ -309,7 +309,7 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
     if imgs is not None:
         save_pic("input.png", P.gray(imgs[_frontal(result, imgs)], m))
     if truth_normals is not None:
-        from ..metrics import normal_error_map
+        from ..metrics.errors import normal_error_map
 
         t = np.asarray(truth_normals, dtype=np.float32)
         ne = np.where(m, normal_error_map(n, t), np.nan).astype(np.float32)
@@ -324,7 +324,7 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
     hgt = getattr(result, "height", None)
     if hgt is None and height:
         try:
-            from ..integrate import integrate
+            from ..integrate.poisson import integrate
             hgt = integrate(n, object_mask=m)
         except Exception as e:  # noqa: BLE001 - integration failed: no heights, say why
             warnings.warn(f"no height written: {e}", PsbenchWarning, stacklevel=2)

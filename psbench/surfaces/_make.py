@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import registry
-from .._checks import PsbenchError, as_mask
-from .._deprecate import renamed_args
+from .._shared.checks import PsbenchError, as_mask
+from .._shared.deprecation import renamed_args
 from ._surface import Surface, check_size, finish, normals_from_height
 from ._topography import read_topography, surface_from_topography
 

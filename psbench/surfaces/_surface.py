@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
-from .._deprecate import warn_renamed
+from .._shared.checks import PsbenchError, as_mask
+from .._shared.deprecation import warn_renamed
 
 __all__ = ["Surface", "pixel_grid", "normals_from_height", "MIN_SIZE"]
 

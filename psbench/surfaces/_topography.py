@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
+from .._shared.checks import PsbenchError, as_mask
 from ._surface import finish, normals_from_height
 
 __all__ = ["Topography", "read_topography", "surface_from_topography", "MAX_INCREMENT_M"]
@@ -41,7 +41,8 @@ class Topography:
         Heights in µm, NaN where not valid. Row 0 is the file's first stored row.
     valid : (H, W) bool
         True where the point was measured (not NaN and not marked invalid by the file's
-        validity mask, ``bindata/valid.bin``).
+        validity mask, ``bindata/valid.bin``). Built in memory: None means the finite
+        heights, and NaN heights are never valid.
     pixel_size : float
         Lateral sampling interval in µm (the file's x and y increments, which are equal).
     meta : dict
@@ -60,6 +61,23 @@ class Topography:
     pixel_size: float
     meta: dict = field(default_factory=dict)
     name: str = ""
+
+    def __post_init__(self):
+        h = np.asarray(self.height, dtype=np.float32)
+        if h.ndim != 2:
+            raise PsbenchError(f"height must have shape (H, W), got shape {h.shape}")
+        v = np.asarray(as_mask(self.valid, h.shape, "valid"), dtype=bool)
+        try:
+            px = float(self.pixel_size)
+        except (TypeError, ValueError):
+            px = float("nan")
+        if not math.isfinite(px) or px <= 0:
+            raise PsbenchError(f"pixel_size must be a positive number of um, got "
+                               f"{self.pixel_size!r}")
+        object.__setattr__(self, "height", h)
+        object.__setattr__(self, "valid", v & np.isfinite(h))
+        object.__setattr__(self, "pixel_size", px)
+        object.__setattr__(self, "meta", dict(self.meta or {}))
 
     @property
     def shape(self):
@@ -160,8 +178,6 @@ def read_topography(path):
                 f"heights in um written where ISO 25178-72 expects metres")
     height = np.where(valid, z * 1e6, np.nan).astype(np.float32)
     valid &= np.isfinite(height)  # a height beyond float32's range is not usable
-    height.setflags(write=False)
-    valid.setflags(write=False)
     # metres -> um to 12 digits, so 6.25e-06 m reads as 6.25 um (not 6.249999999999999)
     pixel_size = float(f"{dx * 1e6:.12g}")
     return Topography(height=height, valid=valid, pixel_size=pixel_size,

@@ -117,3 +117,88 @@ def test_compare_refuses_bad_files(tmp_path, capsys):
     assert code == 2 and "B.x3p" in _error(err)
     code, _, err = _run(capsys, "compare", str(good), str(good), "--picture", "x.jpg")
     assert code == 2 and "expected a .png file" in _error(err)
+
+
+def _field(seed, size=200, disc=True):
+    """Band-limited random heights (um) on a disc, like a breech face."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    z = cv2.GaussianBlur(rng.standard_normal((size, size)).astype(np.float32), (0, 0), 2.0)
+    if not disc:
+        return z
+    yy, xx = np.mgrid[:size, :size] - (size - 1) / 2
+    return np.where(np.hypot(yy, xx) < 0.47 * size, z, np.nan).astype(np.float32)
+
+
+def test_compare_same_and_different_source(tmp_path, capsys):
+    import json
+
+    z = _field(0)
+    disc = np.isfinite(z)
+    full = _field(0, disc=False)
+    # the same surface moved 6 px (37.5 um) to the right under the same disc (the pose is
+    # relative to the centres of the valid regions, which stay put)
+    shifted = np.full_like(z, np.nan)
+    shifted[:, 6:] = full[:, :-6]
+    shifted[~disc] = np.nan
+    a = io.write_x3p(tmp_path / "a.x3p", z, pixel_size=6.25)
+    b = io.write_x3p(tmp_path / "b.x3p", shifted, pixel_size=6.25)
+    c = io.write_x3p(tmp_path / "c.x3p", _field(1), pixel_size=6.25)
+    code, out, err = _run(capsys, "compare", str(a), str(b), "--json", "--picture",
+                          str(tmp_path / "ab.png"))
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["match"] and r["count"] >= 0.8 * r["cells"] and r["ccf"] > 0.9
+    # laying b on a moves it 6 px left: dx = -37.5 um
+    assert r["pose"]["dx_um"] == pytest.approx(-37.5, abs=6.25)
+    assert abs(r["pose"]["dy_um"]) <= 6.25 and abs(r["pose"]["theta_deg"]) <= 1.0
+    assert (tmp_path / "ab.png").is_file() and r["picture"] == str(tmp_path / "ab.png")
+    code, out, err = _run(capsys, "compare", str(a), str(c), "--no-picture", "--json")
+    assert code == 0, err
+    # the command reports what psbench.forensic.cmc finds
+    from psbench.forensic import cmc
+
+    ta, tc = io.read_x3p(a), io.read_x3p(c)
+    ref = cmc(ta.height, tc.height, ta.valid, tc.valid, pixel_size=6.25)
+    r = json.loads(out)
+    assert r["count"] == ref.count and r["ccf"] == pytest.approx(ref.ccf) and r["ccf"] < 0.2
+    assert r["pose"]["theta_deg"] == pytest.approx(ref.pose.theta)
+    code, out, err = _run(capsys, "compare", str(a), str(c), "--no-picture")
+    assert code == 0 and f"a.x3p vs c.x3p: CCFmax {ref.ccf:.3f} | CMC {ref.count} of" in out
+
+
+def test_compare_resamples_and_says_so(tmp_path, capsys, monkeypatch):
+    import cv2
+
+    z = _field(0)
+    fine = cv2.resize(np.nan_to_num(z), (400, 400), interpolation=cv2.INTER_LINEAR)
+    fine[cv2.resize(np.isnan(z).astype(np.uint8), (400, 400),
+                    interpolation=cv2.INTER_NEAREST) > 0] = np.nan
+    a = io.write_x3p(tmp_path / "a.x3p", z, pixel_size=6.25)
+    b = io.write_x3p(tmp_path / "fine.x3p", fine, pixel_size=3.125)
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, "compare", str(a), str(b))
+    assert code == 0, err
+    assert "fine.x3p (3.125 um per pixel) resampled to 6.25 um per pixel" in err
+    assert "(match)" in out and "pixel 6.25 um" in out
+    assert (tmp_path / "a_vs_fine_cmc.png").is_file()  # the default picture
+
+
+@pytest.mark.slow
+def test_compare_real_scans(tmp_path, capsys):
+    from pathlib import Path
+
+    from psbench.forensic import read_guns
+
+    try:
+        guns = read_guns()
+    except ps.PsbenchError as exc:
+        pytest.skip(f"no shared scans ({exc}); set PSBENCH_X3P")
+    same = guns[guns["gun"] == guns["gun"].iloc[0]]["path"].tolist()[:2]
+    other = guns[guns["gun"] != guns["gun"].iloc[0]]["path"].iloc[0]
+    code, out, err = _run(capsys, "compare", str(same[0]), str(same[1]), "--picture",
+                          str(tmp_path / "same.png"))
+    assert code == 0 and "(match)" in out, err
+    code, out, err = _run(capsys, "compare", str(same[0]), str(Path(other)), "--no-picture")
+    assert code == 0 and "(no match)" in out, err

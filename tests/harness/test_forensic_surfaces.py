@@ -72,3 +72,9 @@ def test_x3p_surface_on_the_command_line(tmp_path):
     (tmp_path / "bad.x3p").write_bytes(b"not a zip")
     r = psbench("surface=bad.x3p", cwd=tmp_path)
     assert r.returncode != 0 and "bad.x3p" in r.stderr and "not a zip" in r.stderr
+
+
+def test_x3p_as_data_points_to_surface(tmp_path):
+    ps.io.write_x3p(tmp_path / "scan.x3p", np.zeros((8, 8), np.float32), pixel_size=5.0)
+    r = psbench("data=scan.x3p", cwd=tmp_path)
+    assert r.returncode == 2 and "surface=scan.x3p" in r.stderr and "Traceback" not in r.stderr

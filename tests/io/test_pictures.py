@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from psbench import io
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.io import _pictures as P
 from psbench.io._relief import height_picture
 from psbench.lights import layout

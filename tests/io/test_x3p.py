@@ -289,3 +289,15 @@ def test_other_reader_reads_psbench_files(tmp_path):
     assert s.step_x == pytest.approx(6.25) and s.step_y == pytest.approx(6.25)  # um
     assert np.array_equal(np.isnan(s.data), np.isnan(z))
     assert np.allclose(s.data[np.isfinite(z)], z[np.isfinite(z)], atol=1e-6)
+
+
+def test_topography_checks_its_fields():
+    t = ps.Topography(height=[[1, 2], [np.nan, 4]], valid=None, pixel_size=2)
+    assert t.height.dtype == np.float32 and t.pixel_size == 2.0
+    assert t.valid.tolist() == [[True, True], [False, True]]  # NaN is never valid
+    with pytest.raises(PsbenchError, match="pixel_size must be a positive"):
+        ps.Topography(height=np.zeros((2, 2)), valid=None, pixel_size=-1)
+    with pytest.raises(PsbenchError, match=r"valid must have shape \(2, 2\)"):
+        ps.Topography(height=np.zeros((2, 2)), valid=np.ones((3, 3), bool), pixel_size=1)
+    with pytest.raises(PsbenchError, match=r"height must have shape \(H, W\)"):
+        ps.Topography(height=np.zeros(4), valid=None, pixel_size=1)
