@@ -45,7 +45,7 @@ def ang(a, b):
 def gather(path, images, lay, om, gt):
     import psbench as ps
     from scipy.ndimage import binary_erosion, convolve
-    from psbench.solve.methods import _lm
+    from psbench.solve.methods.tsfit import _lm
     from psbench.solve.methods.robust import TS_SETTINGS
     from psbench.solve.validation import lambert_heldout, ts_heldout
     k = lay.k

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .methods._tsfit_kernel import _acos, _expm, _light
+from .methods.tsfit._kernel import _acos, _expm, _light
 
 __all__ = ["lambert_errors", "ts_errors", "LEVER"]
 
@@ -102,7 +102,7 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
     """Held-out errors of the Lambert + Torrance-Sparrow fit of each pixel, to first
     order in its per-pixel unknowns rho * n (rho_s and m held at their fitted values).
 
-    tab (7, k) the light table of :func:`psbench.solve.methods._tsfit_kernel.tables`;
+    tab (7, k) the light table of :func:`psbench.solve.methods.tsfit._kernel.tables`;
     I (k, n) float32; w (k, n) float32 or uint8; n (3, n) unit normals; rd, rs, m (n,)
     float32; out (k, n) float32. The model's gradient in b = rho_d n is
     mu_i [d_i + (2 m^2 rho_s E_i theta_i / sin theta_i / rho_d) (h_i - (h_i . n) n)] on

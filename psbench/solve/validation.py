@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import _heldout_kernel as _hk
 
 __all__ = ["Validation", "lambert_heldout", "ts_heldout", "validation_map", "validate"]
@@ -95,7 +95,7 @@ def lambert_heldout(I, S, w):
 def ts_heldout(I, table, w, n, rd, rs, m):
     """Held-out errors (k, p) float32 of a Lambert + Torrance-Sparrow fit, to first order.
 
-    ``table`` is :attr:`psbench.solve.methods._lm.Lights.table`; ``n`` (3, p) unit
+    ``table`` is :attr:`psbench.solve.methods.tsfit._lm.Lights.table`; ``n`` (3, p) unit
     normals; ``rd``, ``rs``, ``m`` (p,) the fitted rho_d, rho_s and lobe width."""
     I = np.ascontiguousarray(I, dtype=np.float32)
     out = np.empty_like(I)
