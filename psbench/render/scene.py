@@ -197,7 +197,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         ``"ts"`` (Torrance–Sparrow): I = mu [rho_s exp(-m^2 arccos(n_h.n)^2) + rho_d (s.n)],
         n_h = (v + s) / |v + s| (Eq. 2.14–2.15).
         Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow. Cast
-        shadows come from :func:`psbench.shadowmap.shadow_map` on
+        shadows come from :func:`psbench.render.shadowmap.shadow_map` on
         ``surface.height`` (``bias=shadow_bias``, 2x oversampled sweep).
     shadows : {True, "all", False, "self", "none"}
         True / ``"all"``: self and cast shadows. False / ``"self"``: no cast
@@ -261,7 +261,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         per pixel from the surface point to the light. Default: ``lights.positions``
         if the layout has them, else distant lights. The returned layout's
         directions are those from the image centre (height 0) to each light.
-        Shading, self shadows and cast shadows (:func:`psbench.shadowmap.point_shadow_map`,
+        Shading, self shadows and cast shadows (:func:`psbench.render.shadowmap.point_shadow_map`,
         a perspective shadow map around the light's foot point) are per pixel.
     falloff : bool, default False
         Near lights only: multiply by (d0 / |L - p|)^2, d0 = |L| (distance to the
@@ -273,15 +273,15 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         simplification of Section 5.2.2.2: depth variation << distance).
         f must exceed the highest surface point. None: v = (0, 0, 1).
     shadow_bias : float, default 0.05
-        ``bias`` passed to :func:`psbench.shadowmap.shadow_map` /
-        :func:`~psbench.shadowmap.point_shadow_map` (pixel-height units; the
+        ``bias`` passed to :func:`psbench.render.shadowmap.shadow_map` /
+        :func:`~psbench.render.shadowmap.point_shadow_map` (pixel-height units; the
         rendered heights are exact, so it is small).
     bounces : {0, 1, 2}, default 0
         Interreflections: light reflected once (1) or twice (2) between surface
         points that see each other is added to the direct images (unchanged);
         ``Scene.secondary_fraction`` is its share of each clean pixel. Distant lights
         and the orthographic camera only. Model and equations:
-        :mod:`psbench._interreflect`.
+        :mod:`psbench.render._interreflect`.
     bounce_samples : int, default 24
         Direction sampling density of the interreflections: azimuths of the
         quadrature (x ~0.64 as many elevation bins); cost grows as its square.

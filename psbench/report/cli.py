@@ -36,7 +36,7 @@ from . import pages as G
 from . import scales as S
 from . import tables as T
 from . import verdicts as V
-from .html import save_figure, write_atomic, write_page
+from ..io.html import save_figure, write_atomic, write_page
 
 __all__ = ["build", "build_all", "main"]
 

@@ -55,7 +55,7 @@ fits noise); on Phong-rendered scenes the Gaussian lobe is an approximation (9.1
 against 7.0 degrees on Torrance-Sparrow scenes, still the lowest of all methods).
 
 Sources: Torrance-Sparrow fit: :mod:`psbench.solve.methods.tsfit`; rank trimming and
-concentration steps: :mod:`psbench.solve.methods.trim` (Rousseeuw & Van Driessen,
+concentration steps: :mod:`psbench.solve.methods.robust.trim` (Rousseeuw & Van Driessen,
 Data Min. Knowl. Disc. 12, 2006); truncated quadratic loss as the criterion between
 models: P. J. Rousseeuw and A. M. Leroy, "Robust Regression and Outlier Detection",
 Wiley, 1987. The combination is psbench's.

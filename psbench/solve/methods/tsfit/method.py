@@ -210,7 +210,7 @@ def tsfit(problem, options=None) -> Fit:
        differs from the mean normal of its 8 neighbours by more than 3 times the
        median of that difference restarts from that mean and keeps the refit if
        it lowers its own cost (nothing is smoothed; see
-       :mod:`psbench.solve.methods._tsprop`).
+       :mod:`psbench.solve.methods.tsfit._prop`).
 
     Accuracy: on noisy scenes rendered with this model the fit is close to the
     Cramér–Rao bound of a per-pixel estimator (measured within 3-20 % on the
