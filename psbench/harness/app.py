@@ -307,6 +307,9 @@ def main(args=None):
         import hydra
 
         S.register_hydra()
+        from .launcher import register
+
+        register()                     # -m: a pool that survives a lost worker
         try:
             _precheck(argv, _WATCH)
         except PsbenchError as exc:

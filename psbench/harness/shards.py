@@ -135,6 +135,13 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
 
             got = {r["run_id"] for r in results}
             stored = stored_status(root, sweep)
+            for c in pending:            # stored by the lost pool: counted, not redone
+                for rid in (run_id(p) for p in c):
+                    if rid in stored and rid not in got:
+                        got.add(rid)
+                        results.append({"run_id": rid, "status": stored[rid], "error": None,
+                                        "t_total": None})
+                        prog.update(1, stored[rid] != "ok")
             pending = [[p for p in c if run_id(p) not in got and run_id(p) not in stored]
                        for c in pending]
             pending = [c for c in pending if c]
