@@ -272,7 +272,8 @@ def _experiment(cfg, root):
                        label=name)
     for r in out["results"] or []:
         if r["status"] != "ok":
-            print(f"failed {r['run_id']}: {r['error']}", file=sys.stderr)
+            print(f"failed {r['run_id'] or '(a shard job: its runs are not stored)'}: "
+                  f"{r['error']}", file=sys.stderr)
     if out["failed"]:
         _EXIT["code"] = 1
     return {k: v for k, v in out.items() if k != "results"}

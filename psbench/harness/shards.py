@@ -151,8 +151,8 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
             if attempt == POOL_RESTARTS:
                 prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
                                   "runs are stored: run the same command again to resume\n")
-                results.append({"run_id": None, "status": "failed", "error": lost,
-                                "t_total": None})
+                results.extend({"run_id": run_id(p), "status": "failed", "error": lost,
+                                "t_total": None} for c in pending for p in c)
                 return results
             prog.stream.write(f"\na worker process was lost ({lost}); restarting the pool "
                               f"for the {sum(map(len, pending))} runs not stored\n")

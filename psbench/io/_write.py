@@ -136,6 +136,13 @@ def write_dataset(path, images, lights, *, object_mask=None, normals=None, bits=
         raise PsbenchError(f"images must have shape (k, H, W), got {raw_int.shape}")
     imgs = raw_int if np.issubdtype(raw_int.dtype, np.unsignedinteger) else as_images(raw_int)
     k, H, W = imgs.shape
+    if not np.issubdtype(imgs.dtype, np.unsignedinteger):
+        lo, hi = float(np.nanmin(imgs)), float(np.nanmax(imgs))
+        if lo < 0.0 or hi > 1.0:       # written clipped: say so, the files lose those values
+            n = int(np.count_nonzero((imgs < 0.0) | (imgs > 1.0)))
+            warnings.warn(f"write_dataset: {n} image values outside [0, 1] (min {lo:g}, max "
+                          f"{hi:g}) are clipped to [0, 1] in {path}; scale the images first "
+                          "to keep them", PsbenchWarning, stacklevel=2)
     lay = lights if isinstance(lights, Layout) else _layout(np.asarray(lights, dtype=float))
     if lay.k != k:
         raise PsbenchError(f"lights has {lay.k} directions for {k} images")

@@ -53,3 +53,17 @@ def test_corrupt_normals_npy_is_named(folder):
     (folder / "normals.npy").write_bytes(b"\x93NUMPY garbage")
     with pytest.raises(PsbenchError, match=r"normals\.npy.*expected"):
         read_dataset(folder)
+
+
+def test_write_dataset_warns_when_it_clips(tmp_path):
+    from psbench.io import PsbenchWarning
+
+    imgs = np.full((3, 4, 4), 0.5)
+    imgs[0, 0, 0] = 5.0
+    lights = np.array([[0, 0, 1.0], [0.6, 0, 0.8], [0, 0.6, 0.8]])
+    with pytest.warns(PsbenchWarning, match=r"1 image values outside \[0, 1\].*max 5"):
+        write_dataset(tmp_path / "d", imgs, lights)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_dataset(tmp_path / "e", np.full((3, 4, 4), 0.5), lights)
