@@ -252,8 +252,12 @@ def _experiment(cfg, root):
             prepare(root, scale)
     else:                                # an inline mapping (name, grids, fixed, scales)
         exp = experiment_spec(cfg.experiment)
+    if int(cfg.jobs) == 0:
+        raise PsbenchError("jobs=0: expected -1 (all cores), N >= 1 workers, or -N (all "
+                           "cores but N-1)")
     runs = expand(exp, scale, _base_params(cfg), base_dir=_cwd())
     name = str(exp["name"])
+    _refuse_ignored(cfg, runs, name, scale)
     from .params import run_id
 
     _WATCH.update(root=root, runs={name: [run_id(p) for p in runs]})
@@ -268,10 +272,42 @@ def _experiment(cfg, root):
                        label=name)
     for r in out["results"] or []:
         if r["status"] != "ok":
-            print(f"failed {r['run_id']}: {r['error']}", file=sys.stderr)
+            print(f"failed {r['run_id'] or '(a shard job: its runs are not stored)'}: "
+                  f"{r['error']}", file=sys.stderr)
     if out["failed"]:
         _EXIT["code"] = 1
     return {k: v for k, v in out.items() if k != "results"}
+
+
+def _refuse_ignored(cfg, runs, name, scale):
+    """A run parameter given on the command line that the experiment's grid sets to
+    another value (or ``sweep=``, the store folder being the experiment's) would be
+    silently dropped: refused (one line) before any work."""
+    from hydra.core.hydra_config import HydraConfig
+
+    try:
+        over = HydraConfig.get().overrides.task
+    except ValueError:
+        return
+    given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[-1] for o in over if "=" in o}
+    if "sweep" in given:
+        raise PsbenchError(f"sweep={given['sweep']}: experiments store their rows in "
+                           f"runs/{name}/; leave sweep= out (it names command-line sweeps)")
+    from .params import normalize
+
+    params = {p.name for p in S.PARAMS}
+    try:
+        base = normalize(_base_params(cfg), base_dir=_cwd())
+    except Exception:  # noqa: BLE001 - the runs' own checks (preflight) report bad values
+        return
+    for key, text in given.items():
+        if key not in params or key not in base or not runs:
+            continue
+        vals = sorted({str(p.get(key)) for p in runs})
+        if vals != [str(base[key])]:            # the grid set it: the value given is dropped
+            shown = ", ".join(vals[:4]) + (" ..." if len(vals) > 4 else "")
+            raise PsbenchError(f"{key}={text}: experiment {name} sets {key} itself (scale="
+                               f"{scale}: {shown}); leave {key}= out, or choose another scale")
 
 
 def main(args=None):
@@ -307,6 +343,9 @@ def main(args=None):
         import hydra
 
         S.register_hydra()
+        from .launcher import register
+
+        register()                     # -m: a pool that survives a lost worker
         try:
             _precheck(argv, _WATCH)
         except PsbenchError as exc:
