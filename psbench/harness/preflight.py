@@ -141,7 +141,7 @@ def _mini_scene(p):
             mini = make_surface("semisphere" if os.path.isabs(s) else s, size=MINI)
             lay = layout(p["lights"])
             scene = render(mini, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"])
+                           seed=p["seed"], quantize=p["quantize"], **(p.get("render") or {}))
             return scene.images, lay, mini.object_mask
         lay = _data_lights(p["data"])
         if lay is None:

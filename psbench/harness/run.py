@@ -115,7 +115,8 @@ class _Scene:
             surf = surface_from_file(s) if os.path.isabs(s) else make_surface(s, size=p["size"])
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)
+                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0,
+                           **(p.get("render") or {}))
             self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
