@@ -112,7 +112,7 @@ def cell_kind(part, column):
     if part == "fallback":
         return "percent"
     if part == "default" and column in ("cells", "cells lost"):
-        return "ratio"
+        return "threshold"       # counts: printed exactly, compared exactly by the gate
     return "ne"
 
 
