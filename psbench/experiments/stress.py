@@ -249,8 +249,10 @@ def figures(agg):
     if agg is None or agg.empty or not (agg["part"] == "NE").any():
         return []
     ne = agg[agg["part"] == "NE"].pivot_table(index="row", columns="column", values="value")
+    # the model first, then the single departures, then the combinations
+    ne = ne.loc[sorted(ne.index, key=lambda r: (not r.startswith("none"), " + " in r, r))]
     show = [s for s in ("None", "trim", "robust", "tsfit", "Th-Hi-Re-Sh") if s in ne]
-    fig, (ax,) = new_figure(w=10.0, h=0.35 * len(ne) + 1.5)
+    fig, (ax,) = new_figure(w=14.0, h=0.35 * len(ne) + 1.5)   # room for the long labels
     y = np.arange(len(ne))
     h = 0.8 / max(len(show), 1)
     for i, s in enumerate(show):
@@ -258,6 +260,6 @@ def figures(agg):
                 label="None (least squares)" if s == "None" else s)
     ax.set_yticks(y, ne.index, fontsize="small")
     ax.invert_yaxis()
-    ax.legend(fontsize="small")
+    ax.legend(fontsize="small", ncol=len(show), loc="lower center", bbox_to_anchor=(0.5, 1.0))
     finish(ax, "mean NE (deg)", "", legend=False)
     return [("stress_ne", fig)]
