@@ -52,14 +52,17 @@ _CELL = ("surface", "lights", "noise")
 HIDDEN_PARTS = {"cells"}
 TABLE_AXES = {"NE": ("departure", "solver"), "default": ("departure", ""),
               "lost": ("cell (departure | surface | lights | noise)", "solver"),
-              "ve": ("departure", "solver"), "fallback": ("departure", "solver"),
+              "ve": ("departure", "solver"), "ve median": ("departure", "solver"),
+              "fallback": ("departure", "solver"),
               "time": ("solver", "")}
 PART_TITLES = {"NE": "Mean NE per departure",
                "default": f"The default ({DEFAULT}) against the better of least squares and "
                           f"trim, per cell",
                "lost": f"Cells where {DEFAULT} is more than {TOLERANCE} deg worse than the "
                        "better of least squares and trim",
-               "ve": "Validation error (mean of ve_mean)", "fallback": "Fallback fraction",
+               "ve": "Validation error (ve_mean: held-out-light error relative to the pixel's "
+                     "intensity; no ground truth used)", "ve median": "Validation error "
+                     "(ve_median)", "fallback": "Fallback fraction",
                "time": "Solve time"}
 
 
@@ -110,7 +113,9 @@ def cell_kind(part, column):
     if part == "time":
         return "time"
     if part == "fallback":
-        return "percent"
+        return "qf"              # a fraction in 0..1
+    if part.startswith("ve") or column.startswith("ve "):
+        return "cond"            # small relative errors: four decimals
     if part == "default" and column in ("cells", "cells lost"):
         return "threshold"       # counts: printed exactly, compared exactly by the gate
     return "ne"
@@ -119,7 +124,7 @@ def cell_kind(part, column):
 def cell_unit(part, column):
     if part == "default" and column in ("cells", "cells lost"):
         return ""
-    if part == "ve":
+    if part.startswith("ve") or column.startswith("ve "):
         return ""
     return {"time": "s", "fallback": ""}.get(part, "deg")
 
@@ -151,7 +156,8 @@ def aggregate(rows):
         v = g["ne_mean"].dropna()
         if len(v):
             recs.append(("NE", dep, sol, float(v.mean()), int(len(v))))
-        for part, col in (("ve", "ve_mean"), ("fallback", _fallback_column(d))):
+        for part, col in (("ve", "ve_mean"), ("ve median", "ve_median"),
+                          ("fallback", _fallback_column(d))):
             if col and col in g:
                 x = pd.to_numeric(g[col], errors="coerce").dropna()
                 if len(x):
@@ -165,13 +171,17 @@ def aggregate(rows):
         for sol, v in r.items():
             if v == v:
                 recs.append(("cells", cell, sol, float(v), 1))
-    recs += _default_records(cells)
+    ve = (d.pivot_table(index="_cell", columns="_solver", values="ve_mean", aggfunc="mean")
+          if "ve_mean" in d and pd.to_numeric(d["ve_mean"], errors="coerce").notna().any()
+          else None)
+    recs += _default_records(cells, ve)
     return long_frame(recs)
 
 
-def _default_records(cells):
+def _default_records(cells, ve=None):
     """Per departure: the default's mean, the per-cell best reference's mean, their mean
-    and worst difference, cells lost; and each lost cell's values."""
+    and worst difference, cells lost; and each lost cell's values (with the ve of the
+    default and trim when stored: does the validation error see the loss?)."""
     if DEFAULT not in cells or not set(REFERENCES) <= set(cells):
         return []
     c = cells.dropna(subset=[DEFAULT, *REFERENCES])
@@ -193,6 +203,9 @@ def _default_records(cells):
             if c.loc[cell, s] == c.loc[cell, s]:
                 recs.append(("lost", cell, s, float(c.loc[cell, s]), 1))
         recs.append(("lost", cell, "difference", float(gap[cell]), 1))
+        for s in (DEFAULT, "trim"):
+            if ve is not None and s in ve and cell in ve.index and ve.loc[cell, s] == ve.loc[cell, s]:
+                recs.append(("lost", cell, f"ve {s}", float(ve.loc[cell, s]), 1))
     return recs
 
 
