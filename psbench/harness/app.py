@@ -33,7 +33,7 @@ import signal
 import sys
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import spec as S
 from ._config import CONFIG_PATH, _base_params
 from .checks import _precheck, check_keys

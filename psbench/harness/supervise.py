@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["run_supervised", "watch_parent", "worker_setup", "MAIN_PID_ENV"]
 

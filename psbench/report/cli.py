@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .._provenance import git_state
+from .._shared.provenance import git_state
 from . import figures as F
 from . import pages as G
 from . import scales as S
