@@ -6,7 +6,7 @@ This experiment renders the Table 5.3 surfaces plus ``cup`` and ``vgroove`` with
 departure at a time (and four combinations) and solves them with every method and the
 thesis's best masks, with the lights the solver believes (the nominal ones). A
 departure is a set of run parameters (``model``, ``bounces``, ``quantize`` and the
-``render`` options of :mod:`psbench._departures`); its row label is derived from them,
+``render`` options of :mod:`psbench.render._departures`); its row label is derived from them,
 so the grid YAML is the only list of departures.
 
 The question of the page: is the default (``robust``) within 0.3 deg of the better of
@@ -34,7 +34,7 @@ AVERAGES = ("Mean NE (deg) per departure over the surfaces (semisphere, spheres,
 NOTES = ("Not a thesis table. The solver always gets the nominal lights (distant, the "
          "layout's directions, power 1): the departures in the light rows are calibration "
          "errors it does not know about. GGX: model='ggx' (Walter et al. 2007 with Smith "
-         "G1 and Schlick Fresnel, psbench._ggx); two materials: the right half of the image"
+         "G1 and Schlick Fresnel, psbench.render._ggx); two materials: the right half of the image"
          " has the second material; near lights at a distance in image sides, with the "
          "inverse-square falloff. The full scale runs at 64^2 (the Table 5.3 surfaces lose "
          "fine detail); the ci scale one surface at 24^2. Times: shared 2-core machine.")

@@ -273,7 +273,7 @@ def _render(value, ctx):
     bad = sorted(set(value) - set(RENDER_OPTIONS))
     if bad:
         raise PsbenchError(f"render: unknown option(s) {bad}; valid: {', '.join(RENDER_OPTIONS)}")
-    from .. import _departures
+    from ..render import _departures
 
     dep = {k: value.get(k, d) for k, d in (
         ("albedo_texture", 0.0), ("second_material", None), ("light_error", 0.0),

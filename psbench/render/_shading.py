@@ -28,7 +28,7 @@ class Shader:
                  positions, falloff, perspective, clamp=True, half_cos=False, roughness=0.3,
                  f0=0.04):
         self.object_mask = object_mask
-        self.roughness, self.f0 = roughness, f0   # GGX (psbench._ggx)
+        self.roughness, self.f0 = roughness, f0   # GGX (psbench.render._ggx)
         self.clamp = clamp
         #: keep cos(n, n_h) of the last light in ``self.cos_h`` (the reflection-cone
         #: highlight truth needs it for every model)

@@ -2,7 +2,7 @@
 
 :func:`render` shades a height-field surface under k lights with the Lambert
 (Eq. 2.12), Phong (Eq. 2.13), Torrance–Sparrow (Eq. 2.14–2.15) or GGX microfacet
-(:mod:`psbench._ggx`) model, puts in
+(:mod:`psbench.render._ggx`) model, puts in
 self and cast shadows, adds Gaussian camera noise and optional quantisation,
 and returns a :class:`Scene` holding the image stack and the per-image ground
 truth (highlights, self shadows, cast shadows) that the quality factor needs.
@@ -206,7 +206,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         with D = alpha^2 / (pi ((n_h.n)^2 (alpha^2 - 1) + 1)^2), Smith
         G1(c) = 2c / (c + sqrt(alpha^2 + (1 - alpha^2) c^2)) and Schlick
         F = F0 + (1 - F0)(1 - v.n_h)^5; alpha = ``roughness``, F0 = ``f0``
-        (:mod:`psbench._ggx`). A lobe no solver of psbench models.
+        (:mod:`psbench.render._ggx`). A lobe no solver of psbench models.
         Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow. Cast
         shadows come from :func:`psbench.shadowmap.shadow_map` on
         ``surface.height`` (``bias=shadow_bias``, 2x oversampled sweep).
@@ -301,7 +301,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         quadrature (x ~0.64 as many elevation bins); cost grows as its square.
     albedo_texture, second_material, light_error, power_error, light_distance, ambient, saturation, gamma
         Departures from the solvers' model (defaults: none), defined in
-        :mod:`psbench._departures`: ``albedo_texture`` c in [0, 1) multiplies rho_d by
+        :mod:`psbench.render._departures`: ``albedo_texture`` c in [0, 1) multiplies rho_d by
         a smooth seeded texture in [1 - c, 1]; ``second_material`` (a mapping of
         ``rho_s``, ``m``, ``roughness``, ``f0``, ``phong_m``) on the right half of the
         image; ``light_error`` (degrees) and ``power_error`` (fraction) render each

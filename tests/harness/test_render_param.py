@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import psbench as ps
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.harness.params import normalize, run_id, scene_key
 from psbench.harness.run import _Scene
 

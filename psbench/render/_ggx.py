@@ -19,7 +19,7 @@ white Lambertian surface. At n = l = v the specular term is F0 / (4 alpha^2); th
 directional albedo of f_s with F0 = 1 is at most 1 (energy conservation; the shortfall
 at large alpha is the multiple scattering the Smith term leaves out). The pieces are
 plain numpy functions on float32 planes, used light by light by
-:class:`psbench._shading.Shader`.
+:class:`psbench.render._shading.Shader`.
 """
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
-"""GGX lobe (psbench._ggx, render(model="ggx")) against independent numeric checks."""
+"""GGX lobe (psbench.render._ggx, render(model="ggx")) against independent numeric checks."""
 import numpy as np
 import pytest
 
 import psbench as ps
-from psbench._checks import PsbenchError
-from psbench._ggx import ggx_d, ggx_specular, smith_g1
+from psbench._shared.checks import PsbenchError
+from psbench.render._ggx import ggx_d, ggx_specular, smith_g1
 
 
 def _sphere_dirs(n_theta=400, n_phi=200, top=np.pi / 2):

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["SECOND_MATERIAL_KEYS", "check", "perturb_lights", "near_positions",
            "albedo_texture", "second_material", "camera"]

@@ -1,9 +1,9 @@
-"""Render departures from the solvers' model (psbench._departures via render options)."""
+"""Render departures from the solvers' model (psbench.render._departures via render options)."""
 import numpy as np
 import pytest
 
 import psbench as ps
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.lights import Layout
 
 
