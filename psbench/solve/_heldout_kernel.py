@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .methods._tsfit_kernel import _acos, _expm, _light
+from .methods.tsfit._kernel import _acos, _expm, _light
 
 __all__ = ["lambert_errors", "ts_errors", "LEVER"]
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import _heldout_kernel as _hk
 
 __all__ = ["Validation", "lambert_heldout", "ts_heldout", "validation_map", "validate"]

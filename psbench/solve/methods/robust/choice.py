@@ -204,7 +204,7 @@ def _validation(px, keep, use_t, ve_t):
     """The validation error of the chosen fit per pixel: the Torrance-Sparrow fit's
     where it was chosen, the trimmed Lambertian fit's (held out over its kept
     observations) elsewhere (:mod:`psbench.solve.validation`)."""
-    from ..validation import lambert_heldout, summarise, validation_map
+    from ...validation import lambert_heldout, summarise, validation_map
     I = px.Ik
     vals = validation_map(lambert_heldout(I, px.S, keep), keep, I)
     if ve_t is not None:

@@ -396,7 +396,7 @@ def _tsfit(problem, opt, start_name):
 def _validation(L, I, w, n, rd, rs, m, idx, shape):
     """The validation error of the fitted model (:mod:`psbench.solve.validation`): the
     model's held-out errors over the observations of positive weight."""
-    from ..validation import summarise, ts_heldout, validation_map
+    from ...validation import summarise, ts_heldout, validation_map
     vals = np.empty(idx.size, dtype=np.float32)
     for lo in range(0, idx.size, 1 << 16):
         s = slice(lo, lo + (1 << 16))
