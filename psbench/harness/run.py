@@ -125,7 +125,8 @@ class _Scene:
                 self.pixel_size = getattr(surf, "pixel_size", None)  # a cartridge case's
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)
+                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0,
+                           **(p.get("render") or {}))
             self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
