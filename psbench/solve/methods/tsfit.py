@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._checks import PsbenchError
+from ..._warnings import ConvergenceWarning
 from ...registry import Method
 from ..base import Fit, Options, check_choice, check_int, check_number
 from . import _lm, _tsgrid, _tsprop, _tsshared
@@ -363,8 +364,9 @@ def _tsfit(problem, opt, start_name):
     nconv = int((~conv).sum())
     if nconv:
         warnings.warn(f"tsfit: {nconv} of {P} object pixels did not converge within "
-                      f"lm_max_iter={opt.lm_max_iter}; they keep their best estimate",
-                      RuntimeWarning, stacklevel=2)
+                      f"lm_max_iter={opt.lm_max_iter} and keep their best estimate (a "
+                      "larger options.lm_max_iter lets them go on)",
+                      ConvergenceWarning, stacklevel=2)
 
     def plane(v, fill=0, dtype=np.float32):
         out = np.full(H * W, fill, dtype=dtype)
