@@ -30,8 +30,8 @@ import time
 import numpy as np
 
 import psbench as ps
-from psbench._interreflect import Specular, secondary
-from psbench._interreflect_ref import reference
+from psbench.render._interreflect import Specular, secondary
+from psbench.render._interreflect_ref import reference
 from psbench.surfaces.cup import cup, cup_geometry
 from psbench.surfaces.vgroove import vgroove
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from psbench.lights import layout
 from psbench.render import render
-from psbench.shadowmap import shadow_map
+from psbench.render.shadowmap import shadow_map
 
 TARGETS = {512: 0.5, 2048: 8.0}
 

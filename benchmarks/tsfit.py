@@ -56,9 +56,10 @@ import numpy as np
 
 import psbench as ps
 from psbench import registry
-from psbench.solve.methods._tsfit_eval import noise_comparison, problem
-from psbench.solve.methods._tsstart import resolve_start
 from psbench.solve.methods.tsfit import TsfitOptions, tsfit
+from psbench.solve.methods.tsfit._start import resolve_start
+
+from _tsfit_eval import noise_comparison, problem  # beside this script
 
 #: published mean angular errors (degrees): DiLiGenT paper (L2, ST14) and HS17
 PUBLISHED = {"cat": {"L2": 8.41, "ST14": 6.12, "HS17": 4.9},
@@ -119,7 +120,8 @@ def _threads():
 _TIMING_CHILD = r"""
 import json, sys, time, warnings
 import numpy as np, psbench as ps
-from psbench.solve.methods._tsfit_eval import problem
+sys.path.insert(1, @HERE@)
+from _tsfit_eval import problem
 from psbench.solve.methods.tsfit import tsfit
 warnings.simplefilter("ignore")
 size, runs, pin = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "1"
@@ -151,7 +153,9 @@ print(json.dumps(dict(first=first, wall=float(np.median(wall)), cpu=float(np.med
 
 def _child(code, argv, env=None, cwd=None):
     """Run ``code`` in a fresh interpreter; its last stdout line is JSON. ``cwd``: the
-    directory whose ``psbench/`` it imports (``python -c`` puts it first on sys.path)."""
+    directory whose ``psbench/`` it imports (``python -c`` puts it first on sys.path);
+    ``@HERE@`` in ``code`` is this folder (the evaluation helpers)."""
+    code = code.replace("@HERE@", repr(str(Path(__file__).resolve().parent)))
     out = subprocess.run([sys.executable, "-c", code, *map(str, argv)], capture_output=True,
                          text=True, check=True, env=env,
                          cwd=cwd or Path(__file__).resolve().parents[1])
@@ -224,7 +228,8 @@ def section_timing(args):
 _MEM_CHILD = r"""
 import json, resource, sys, warnings
 import numpy as np, psutil, psbench as ps
-from psbench.solve.methods._tsfit_eval import problem
+sys.path.insert(1, @HERE@)
+from _tsfit_eval import problem
 from psbench.solve.methods.tsfit import TsfitOptions, tsfit
 warnings.simplefilter("ignore")
 size, start = int(sys.argv[1]), sys.argv[2]

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import PsbenchError
-from ._deprecate import renamed_args
+from ._shared.checks import PsbenchError
+from ._shared.deprecation import renamed_args
 
 __all__ = ["Layout", "layout", "cond", "ring_spec"]
 

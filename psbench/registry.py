@@ -33,7 +33,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable
 
-from ._checks import PsbenchError
+from ._shared.checks import PsbenchError
 
 __all__ = ["Threshold", "Mask", "Method", "Experiment", "SurfaceSpec", "GROUPS", "masks",
            "methods", "experiments", "surfaces", "get", "names", "register", "unregister",
@@ -152,12 +152,18 @@ class Method:
 
 @dataclass(frozen=True)
 class SurfaceSpec:
-    """A named test surface: ``func(size, **kw) -> Surface``."""
+    """A named test surface: ``func(size, **kw) -> Surface``.
+
+    ``min_size`` is the smallest ``size`` its generator accepts with its default options
+    (16 for most; a cartridge case needs enough pixels for its marks): the command line's
+    dry runs build their miniature scenes at it.
+    """
 
     name: str
     func: Callable
     help: str = ""
     aliases: tuple[str, ...] = ()
+    min_size: int = 16
 
 
 @dataclass(frozen=True)
@@ -211,6 +217,18 @@ def _wrap(group, name, obj):
     return obj
 
 
+def _public_modules(pkg):
+    """The public modules of a package, and of its public subpackages (a family of
+    several modules, e.g. ``solve/methods/robust/``), depth first."""
+    for info in pkgutil.iter_modules(getattr(pkg, "__path__", []), pkg.__name__ + "."):
+        if info.name.rsplit(".", 1)[-1].startswith("_"):
+            continue
+        mod = importlib.import_module(info.name)
+        yield mod
+        if info.ispkg:
+            yield from _public_modules(mod)
+
+
 def _builtin(group):
     """Built-ins by convention (a source tree without installed metadata)."""
     _, attr, packages = GROUPS[group]
@@ -220,14 +238,11 @@ def _builtin(group):
             pkg = importlib.import_module(pkg_name)
         except ImportError:
             continue
-        for info in pkgutil.iter_modules(getattr(pkg, "__path__", []), pkg_name + "."):
-            if info.name.rsplit(".", 1)[-1].startswith("_"):
-                continue
-            mod = importlib.import_module(info.name)
+        for mod in _public_modules(pkg):
             obj = mod if attr is None else getattr(mod, attr, None)
             if obj is None or (attr is None and not hasattr(mod, "aggregate")):
                 continue
-            spec = _wrap(group, info.name.rsplit(".", 1)[-1], obj)
+            spec = _wrap(group, mod.__name__.rsplit(".", 1)[-1], obj)
             found[spec.name] = spec
     return found
 

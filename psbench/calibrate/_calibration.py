@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images
+from .._shared.checks import PsbenchError, as_images
 from ._fit import apply_response, hot_pixels, near_light_fields, remove_hot_pixels
 
 __all__ = ["Calibration", "apply_calibration"]

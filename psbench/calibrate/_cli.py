@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ..io import load_calibration, read_image, save_calibration
 from ._steps import (calibrate_folder, load_or_new, step_dark, step_directions, step_pixelsize,
                      step_response, step_white)
@@ -18,7 +18,7 @@ __all__ = ["main"]
 
 def main(argv=None):
     """``psbench-calibrate <step> ...``; see ``psbench-calibrate -h``."""
-    from .._warnings import install
+    from .._shared.warn import install
 
     install()                           # warnings as one psbench line each
     ap = argparse.ArgumentParser(

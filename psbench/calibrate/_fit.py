@@ -10,8 +10,8 @@ import warnings
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images
-from .._deprecate import renamed_args
+from .._shared.checks import PsbenchError, as_images
+from .._shared.deprecation import renamed_args
 from ..io._common import PsbenchWarning
 
 __all__ = ["hot_pixels", "remove_hot_pixels", "chart_means", "fit_response", "apply_response",
@@ -414,7 +414,7 @@ def near_light_fields(shape, positions):
     (k, H, W) float32
         Plane image i (Lambert, inverse-square falloff) / its value at the origin.
     """
-    from ..render import render
+    from ..render.scene import render
     from ..surfaces import surface_from_height
 
     P = np.asarray(positions, dtype=np.float64)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ..io import load_calibration, read_dataset, read_image, save_calibration
 from ._calibration import Calibration, apply_calibration
 from ._fit import (chart_means, fit_response, flat_field, hot_pixels, light_directions_from_sphere,

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import sys
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 _SIM_KEYS = {"surface": str, "size": int, "seed": int, "distance": float, "gamma": float,
              "vignette": float, "hot_pixels": int, "model": str, "exposure": float,

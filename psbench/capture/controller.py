@@ -14,7 +14,7 @@ from __future__ import annotations
 import errno
 import os
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from .protocol import ProtocolReplyError, parse_reply
 
 try:  # termios errors (e.g. tcdrain on a hung-up tty) are not OSErrors

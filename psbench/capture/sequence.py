@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._deprecate import renamed_args
+from .._shared.deprecation import renamed_args
 from ..io import atomic_dir, write_image
 from ..io._common import json_default
 from ..io._write import fmt_rows

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError, choice
+from .._shared.checks import PsbenchError, choice
 from .protocol import (ERR_ARGS, ERR_CURRENT, ERR_FAULT, ERR_INDEX, ERR_UNKNOWN, ERROR_TEXT,
                        parse_command)
 
@@ -320,7 +320,7 @@ class SimRig:
     def _stack(self, target):
         if target in self._cache:
             return self._cache[target]
-        from ..render import render
+        from ..render.scene import render
         from ..surfaces import surface_from_height, make_surface
         cfg = self.config
         s = cfg.size
@@ -388,7 +388,7 @@ class SimRig:
     def ideal(self, *, model=None, shadows=True):
         """Calibration-free reference images of the object: distant lights along the
         true directions, unit power, linear, no vignette/hot pixels, float."""
-        from ..render import render
+        from ..render.scene import render
         from ..lights import layout
         cfg = self.config
         sc = render(self.surface, layout(self.directions, ring=self.nominal.ring),

@@ -61,7 +61,7 @@ def firing_pin_path(root):
 
 def prepare(root, scale=None):
     """Make the firing-pin height map the grid reads, once (atomic write)."""
-    from psbench._fs import atomic_write
+    from psbench._shared.files import atomic_write
     from psbench.forensic.cartridge import make_cartridge
 
     out = firing_pin_path(root)

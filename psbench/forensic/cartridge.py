@@ -38,7 +38,7 @@ from typing import Mapping
 import cv2
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ..surfaces import Surface
 from . import _fields as F
 

@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 import scipy.fft as sfft
 
-from .._checks import PsbenchError, as_mask
+from .._shared.checks import PsbenchError, as_mask
 from .cartridge import check_pixel_size
 
 __all__ = ["SHORT_CUTOFF", "LONG_CUTOFF", "cutoff_sigma", "bandpass", "Match", "register",

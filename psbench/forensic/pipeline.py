@@ -34,10 +34,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .._bilateral import bilateral_integrate
-from .._checks import PsbenchError
-from ..integrate import integrate
-from ..metrics import normal_error
+from ..integrate.bilateral import bilateral_integrate
+from .._shared.checks import PsbenchError
+from ..integrate.poisson import integrate
+from ..metrics.errors import normal_error
 from ..solve import solve
 from .cartridge import DEFAULT_PIXEL_SIZE, make_cartridge
 from .identify import LONG_CUTOFF, bandpass, register

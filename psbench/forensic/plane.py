@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
+from .._shared.checks import PsbenchError, as_mask
 from ..surfaces import Surface
 
 __all__ = ["Plane", "estimate_plane", "level", "tilt_surface", "rotate_surface", "reorient",

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError, choice
+from .._shared.checks import PsbenchError, choice
 from ..lights import layout
-from ..render import render
+from ..render.scene import render
 
 __all__ = ["Finish", "FINISH_PRESETS", "ACQUISITION", "Acquisition", "acquire"]
 

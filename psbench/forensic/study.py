@@ -37,7 +37,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import _panels as V
 from . import pipeline as P
 from .cartridge import check_seed, make_cartridge

@@ -35,7 +35,7 @@ import signal
 import sys
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import spec as S
 from ._config import CONFIG_PATH, _base_params
 from .checks import _precheck, check_keys
@@ -324,7 +324,7 @@ def main(args=None):
     """
     from .supervise import MAIN_PID_ENV
 
-    from .._warnings import install
+    from .._shared.warn import install
 
     install()                                     # warnings as one psbench line each
     args = list(sys.argv[1:] if args is None else args)

@@ -17,7 +17,7 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["check_keys", "known_keys"]
 

@@ -11,7 +11,7 @@ import importlib
 import os
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights", "th_scopes",
            "analyses", "choice_sources", "options_class", "check_surface", "check_data",
@@ -61,7 +61,7 @@ def models() -> dict:
 
 
 def wps_weights() -> dict:
-    return {w: "" for w in (_legacy("psbench.solve.wps:WEIGHTS") or ())}
+    return {w: "" for w in (_legacy("psbench.solve.methods.wps:WEIGHTS") or ())}
 
 
 def th_scopes() -> dict:
@@ -69,7 +69,7 @@ def th_scopes() -> dict:
 
 
 def analyses() -> dict:
-    from .. import analysis
+    from ..analysis import builtin as analysis
 
     return {n: (v.__doc__ or "").strip().split("\n")[0] for n, v in sorted(vars(analysis).items())
             if callable(v) and not n.startswith("_")
@@ -97,10 +97,13 @@ def check_surface(value, params):
     valid = surfaces()
     if valid and value not in valid:
         raise PsbenchError(f"surface={value!r} is not known; valid choices: {', '.join(valid)} "
-                           f"or a path to a .npy / 16-bit .png height map")
+                           f"or a path to a .npy / 16-bit .png height map or an .x3p topography")
 
 
 def check_data(value, params):
+    if str(value).lower().endswith(".x3p"):
+        raise PsbenchError(f"data={value!r} is a topography, not a folder of images; render "
+                           f"it with surface={Path(value).name}")
     if not Path(value).is_dir():
         raise PsbenchError(f"data={value!r} is not a folder")
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import itertools
 
 from .. import registry
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from .run import PARAMS, normalize, run_id
 
 __all__ = ["expand", "experiment_spec", "load", "check_scale", "available"]

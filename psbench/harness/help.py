@@ -225,8 +225,8 @@ def help_text() -> str:
              "identity):", *_param_lines(S.SETTINGS), "", FIGURES]
     parts += _masks_block()
     parts += [""] + _methods_block() + [""]
-    parts += _choice_block("surfaces (surface=NAME, or a .npy / 16-bit .png height map)",
-                           C.surfaces())
+    parts += _choice_block("surfaces (surface=NAME, or a .npy / 16-bit .png height map, or an "
+                           ".x3p topography)", C.surfaces())
     parts += _choice_block("render models (model=NAME)", C.models())
     parts += _choice_block("WPS weights (method=wps weight=NAME)", C.wps_weights())
     parts += _choice_block("experiments (+experiment=NAME [scale=ci])", C.experiments())

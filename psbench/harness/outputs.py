@@ -11,9 +11,10 @@ outputs to a folder of its own, built under a temporary name and renamed into pl
 What is written is set by ``outputs=``: ``pictures`` (default: the PNGs of
 :func:`psbench.io.write_outputs`: input, normals, ground truth, NE map with colour bar,
 albedo, mask overlay, weights and the shaded heights, which cost a small part of a run),
-``all`` (pictures, the ``.npy`` arrays and the height meshes ``mesh.ply`` / ``mesh.obj``,
+``all`` (pictures, the compressed ``.npz`` arrays and the height meshes ``mesh.ply`` / ``mesh.obj``,
 which cost more time than the pictures and ~35 MB at 512 x 512, so they are written when asked
-for), ``none``. ``run.json`` in the folder describes the run (its printed row, parameters
+for), ``none``. A run whose pixel size is known (a cartridge case, an ``.x3p`` surface, a
+capture whose calibration measured it) also writes its heights as ``height.x3p`` in µm. ``run.json`` in the folder describes the run (its printed row, parameters
 and figures); the comparison sheet reads it.
 """
 from __future__ import annotations
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["LEVELS", "MARKER", "level", "run_dir", "sweep_dir", "check_dir", "present",
            "write_run", "copy_stored", "read_run_info"]
@@ -111,7 +112,7 @@ def write_run(path, *, lvl, row, result, scene, line) -> float:
     """
     from ..io import atomic_dir, write_outputs
     from ..io._common import json_default
-    from .._fs import atomic_write
+    from .._shared.files import atomic_write
     from . import spec as S
 
     t0 = time.perf_counter()
@@ -123,7 +124,8 @@ def write_run(path, *, lvl, row, result, scene, line) -> float:
     with atomic_dir(path, overwrite=True) as tmp:
         files = write_outputs(tmp, result, object_mask=scene.mask, images=scene.images,
                               truth_normals=scene.normals, true_outliers=outliers,
-                              arrays=full, ply=full, obj=full, per_image=False)
+                              arrays=full, ply=full, obj=full, per_image=False,
+                              pixel_size=getattr(scene, "pixel_size", None))
         cfg = json.loads(row.get("config") or "{}")
         info = dict(run_id=row["run_id"], sweep=row.get("sweep"), row=line,
                     params={k: _clean(row.get(k)) for k in S.param_names()},

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import spec as S
 
 __all__ = ["PARAMS", "normalize", "run_id", "scene_key", "validate", "plain"]

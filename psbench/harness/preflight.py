@@ -5,7 +5,8 @@ ring, a threshold out of range, ...) must be refused with one line and exit stat
 never computed and never stored as a failed row. Most of these are found by the very
 functions a run calls (``make_surface``, ``layout``, ``render``, ``solve``), so instead of
 copying their checks, :func:`preflight` runs each distinct configuration once on a
-16 x 16 miniature of its scene (a *dry run*, milliseconds) and turns their
+16 x 16 miniature of its scene (a *dry run*, milliseconds; a surface whose
+``SurfaceSpec.min_size`` is larger, such as the cartridge case, at that size) and turns their
 :class:`~psbench.PsbenchError` into a refusal. Errors that only real data can show
 (an unreadable image, a method diverging) happen during the run and are stored as
 failed rows, as before.
@@ -20,7 +21,7 @@ import os
 import warnings
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from .params import validate
 
 __all__ = ["preflight", "dry_run", "memory_estimate", "available_memory", "MINI"]
@@ -104,10 +105,18 @@ def dry_run(p, *, scenes=None, seen=None) -> None:
     if p["kind"] != "solve":
         return                      # analysis functions and noop runs: names only
     scenes = {} if scenes is None else scenes
+    if p["data"] is None and p["surface"].lower().endswith(".x3p"):
+        from ..surfaces import read_topography
+
+        read_topography(p["surface"])  # a damaged or foreign file: refused before any work
     if p["data"] is None and not os.path.isabs(p["surface"]):
         from ..surfaces._surface import check_size
 
         check_size(p["size"])
+        if p["size"] < _min_size(p["surface"]):
+            from ..surfaces import make_surface
+
+            make_surface(p["surface"], size=p["size"])  # raises the surface's own refusal
     skey = _key(p, keep=_SCENE)
     if skey not in scenes:
         scenes[skey] = _mini_scene(p)
@@ -130,15 +139,18 @@ def _mini_scene(p):
     """(images, lights, object_mask) of run ``p``'s scene at 16 x 16 (None when a data
     folder's lights cannot be read cheaply)."""
     from ..lights import layout
-    from ..render import render
+    from ..render.scene import render
     from ..surfaces import make_surface
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if p["data"] is None:
             s = p["surface"]
-            # a height file is read by the run itself; its scene checks need no copy
-            mini = make_surface("semisphere" if os.path.isabs(s) else s, size=MINI)
+            # a height file is read by the run itself; its scene checks need no copy. A
+            # surface that needs more pixels than MINI (a cartridge case) is built at its
+            # smallest accepted size
+            mini = (make_surface("semisphere", size=MINI) if os.path.isabs(s)
+                    else make_surface(s, size=max(MINI, _min_size(s))))
             lay = layout(p["lights"])
             scene = render(mini, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
                            seed=p["seed"], quantize=p["quantize"])
@@ -153,6 +165,13 @@ def _mini_scene(p):
 
             images, lay = select_lights(images, lay, p["lights"])
         return images, lay, mini.object_mask
+
+
+def _min_size(name):
+    """The smallest size surface ``name`` accepts (its ``SurfaceSpec.min_size``)."""
+    from .. import registry
+
+    return int(getattr(registry.get("surfaces", name, what="surface"), "min_size", MINI))
 
 
 def _data_lights(folder):

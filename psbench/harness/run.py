@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import spec as S
 from .params import PARAMS, normalize, run_id, scene_key, validate
 from .params import plain as _plain  # noqa: F401 - used by grid
@@ -53,7 +53,7 @@ def provenance() -> dict:
     """Provenance columns shared by every row written by this process."""
     import psbench
 
-    from .._provenance import git_state, library_versions
+    from .._shared.provenance import git_state, library_versions
 
     sha, dirty = git_state()
     return dict(psbench_version=psbench.__version__, git_sha=sha, git_dirty=dirty,
@@ -95,6 +95,7 @@ class _Scene:
         t0 = time.perf_counter()
         self.truth = None
         self.lights_read = None     # data runs with lights=: what select_lights picked
+        self.pixel_size = None      # um per pixel when known: heights also go to height.x3p
         if p["data"] is not None:
             from ..io import read_dataset
 
@@ -106,13 +107,22 @@ class _Scene:
                 _warn_far_lights(p["data"], self.lights_read)
             self.mask = ds.object_mask
             self.normals = getattr(ds, "normals", None)
+            self.pixel_size = ds.meta.get("pixel_size_um")
         else:
             from ..lights import layout
-            from ..render import render
+            from ..render.scene import render
             from ..surfaces import make_surface, surface_from_file
 
             s = p["surface"]
-            surf = surface_from_file(s) if os.path.isabs(s) else make_surface(s, size=p["size"])
+            if s.lower().endswith(".x3p"):  # a measured topography: its pixel size is known
+                from ..surfaces import read_topography, surface_from_topography
+
+                topo = read_topography(s)
+                surf, self.pixel_size = surface_from_topography(topo), topo.pixel_size
+            else:
+                surf = (surface_from_file(s) if os.path.isabs(s)
+                        else make_surface(s, size=p["size"]))
+                self.pixel_size = getattr(surf, "pixel_size", None)  # a cartridge case's
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
                            seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)
@@ -124,7 +134,7 @@ class _Scene:
     def dynamic_range(self):
         """Mean image range over the object (cached: shared by the scene's runs)."""
         if self._dr is None:
-            from ..metrics import dynamic_range
+            from ..metrics.errors import dynamic_range
 
             self._dr = dynamic_range(self.images, object_mask=self.mask)
         return self._dr
@@ -235,8 +245,8 @@ def solve_run(p, images, lights, object_mask, *, rounds=None):
 
 
 def _solve_metrics(p, sc, keep=None):
-    from ..metrics import (intensity_error, ne_by_zenith, normal_error_map,
-                           normal_error_stats, quality_factor)
+    from ..metrics.errors import (intensity_error, ne_by_zenith, normal_error_map,
+                                  normal_error_stats, quality_factor)
 
     warm_up(solve_run, p, sc)
     t0 = time.perf_counter()
@@ -272,7 +282,7 @@ def _solve_metrics(p, sc, keep=None):
 def _qf_sr(res, sc):
     """QF of the masked observations against those whose true secondary fraction
     exceeds t_sr (the observations SR is meant to mask)."""
-    from ..metrics import quality_factor
+    from ..metrics.errors import quality_factor
 
     t = float(res.thresholds.get("t_sr", 0.5))
     pos = np.asarray(sc.truth.secondary_fraction) > t
@@ -283,7 +293,7 @@ def _qf_sr(res, sc):
 
 
 def _analysis(p):
-    from .. import analysis
+    from ..analysis import builtin as analysis
 
     fn = getattr(analysis, p["analysis"])       # validate() checked the name
     sig = inspect.signature(fn)

@@ -96,7 +96,7 @@ def row_table(rows) -> pa.Table:
     PsbenchError
         When a dict holds a key that is not a column.
     """
-    from .._checks import PsbenchError
+    from .._shared.checks import PsbenchError
 
     rows = list(rows)
     for r in rows:

@@ -17,7 +17,7 @@ import os
 import time
 from pathlib import Path
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from .params import run_id, scene_key
 from .progress import Progress
 from .spec import LAUNCHERS

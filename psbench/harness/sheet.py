@@ -147,7 +147,7 @@ def build_sheet(runs, out_dir, *, axes=None, title="psbench comparison", stem="c
     out_dir = Path(out_dir)
     runs = [(dict(r), Path(d)) for r, d in runs]
     if not runs:
-        from .._checks import PsbenchError
+        from .._shared.checks import PsbenchError
 
         raise PsbenchError("runs must hold at least one (row, folder) pair")
     axes = list(axes or varying([r for r, _ in runs]))

@@ -34,7 +34,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import choices as C
 
 __all__ = ["Param", "PARAMS", "SETTINGS", "SPEC", "KINDS", "EXTRAS", "LAUNCHERS", "HYDRA_NODE",
@@ -89,7 +89,7 @@ def as_float(v, name):
 
 def _is_path(s) -> bool:
     s = str(s)
-    return s.lower().endswith((".npy", ".png")) or "/" in s or os.sep in s
+    return s.lower().endswith((".npy", ".png", ".x3p")) or "/" in s or os.sep in s
 
 
 # ----------------------------------------------------------------------------- Param
@@ -288,7 +288,7 @@ _SCENE = ("solve", "analysis")
 PARAMS: tuple[Param, ...] = (
     Param("kind", "str", "solve", "what the run computes", choices=KINDS, scene=True),
     Param("surface", "str", "sombrero2", "test surface: a name, or a path to a .npy / 16-bit "
-          ".png height map (pixel units)", choices=C.surfaces, kinds=_RUN, checked=_SCENE,
+          ".png height map (pixel units) or an .x3p topography (um, its pixel size)", choices=C.surfaces, kinds=_RUN, checked=_SCENE,
           synthetic=True, scene=True, normalize=_surface, check=C.check_surface),
     Param("data", "str", None, "a folder in the DiLiGenT layout, read instead of rendering",
           nullable=True, kinds=_RUN, checked=_SCENE, scene=True, normalize=_data,

@@ -36,8 +36,8 @@ import pyarrow as pa
 import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
-from .._checks import PsbenchError
-from .._fs import HOST, atomic_write
+from .._shared.checks import PsbenchError
+from .._shared.files import HOST, atomic_write
 from .schema import COLUMNS, META_KEY, REQUIRED, SCHEMA, SCHEMA_VERSION, conform, row_table
 
 __all__ = ["default_root", "run_path", "compact_path", "write_row", "write_rows",

@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["run_supervised", "watch_parent", "worker_setup", "MAIN_PID_ENV"]
 
@@ -85,7 +85,7 @@ def watch_parent(parent_pid=None, *, interval=0.5) -> bool:
 def worker_setup(main_pid) -> None:
     """Set up a pool worker started by the ``psbench`` process ``main_pid``: follow it
     when it dies, and leave Ctrl-C to it (it stops the pool and reports)."""
-    from .._warnings import install
+    from .._shared.warn import install
 
     install()                        # warnings as one psbench line each, as in the main
     if main_pid is None or int(main_pid) == os.getpid():

@@ -48,11 +48,17 @@ Frame: x right, y up, z towards the camera -- DiLiGenT uses the same one (least
 squares over all 96 images reproduces the published 8.41 deg / 8.39 deg on cat /
 bear with no axis flip).
 
+Topographies (:mod:`psbench.io.x3p`)
+-------------------------------------
+:func:`read_x3p` reads an ISO 25178-72 X3P surface file through ``x3pio`` into a
+:class:`Topography` (heights in µm, ``valid``, ``pixel_size`` in µm, ``meta``);
+:func:`write_x3p` writes one (increments in metres, NaN where not valid, MD5 checksums).
+
 Writers (:func:`write_dataset`, :func:`write_outputs`, :func:`write_ply`) build their
 files under temporary names and rename them into place.
 
 Modules: ``_images`` (image files), ``_dataset`` (reading folders), ``_write``
-(writing folders and outputs), ``_calibration`` (calibration folders). This package
+(writing folders and outputs), ``_calibration`` (calibration folders), ``x3p`` (X3P files). This package
 depends on :mod:`psbench.calibrate`'s maths only (``_fit``, ``_calibration``), never on
 its folder steps or command, which use this package.
 """
@@ -63,8 +69,9 @@ from ._common import LUMA, PsbenchWarning
 from ._dataset import Dataset, read_dataset, read_lights
 from ._images import read_image, read_images, write_image
 from ._write import atomic_dir, encode_normals, write_dataset, write_obj, write_outputs, write_ply
+from .x3p import Topography, read_x3p, write_x3p
 
 __all__ = ["Dataset", "PsbenchWarning", "read_images", "read_image", "write_image",
            "read_dataset", "write_dataset", "write_outputs", "encode_normals",
            "write_ply", "write_obj", "read_lights", "atomic_dir", "LUMA", "load_calibration",
-           "save_calibration"]
+           "save_calibration", "Topography", "read_x3p", "write_x3p"]

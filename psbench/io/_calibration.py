@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ..calibrate._calibration import Calibration
 from ._common import json_default
 from ._write import atomic_dir

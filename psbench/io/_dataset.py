@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
-from .._deprecate import warn_renamed
+from .._shared.checks import PsbenchError
+from .._shared.deprecation import warn_renamed
 from ..calibrate._calibration import apply_calibration
 from ._calibration import load_calibration
 from ._common import IMAGE_EXT, LUMA, PsbenchWarning, cv2 as _cv2
@@ -84,7 +84,9 @@ class Dataset:
     names : list of str
         Image file names.
     meta : dict
-        ``psbench.json`` contents plus ``"calibrated"`` (bool) and ``"format"``.
+        ``psbench.json`` contents plus ``"calibrated"`` (bool) and ``"format"``;
+        ``"pixel_size_um"`` (µm per pixel) when ``psbench.json`` gives it or the applied
+        calibration measured it.
     path : Path
     """
 
@@ -291,6 +293,8 @@ def read_dataset(path, *, calibration="auto", bits=None, unit_tol=1e-3):
         meta["calibrated"] = True
         meta["calibration_path"] = str(calib_path)
         meta["calibration_steps"] = calib.steps()
+        if calib.pixel_size is not None:  # measured in mm per pixel
+            meta["pixel_size_um"] = float(calib.pixel_size) * 1000.0
     lights = layout(dirs, ring=ring, positions=positions)
     return Dataset(images=images, lights=lights, object_mask=object_mask, normals=normals,
                    names=names,

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
-from .._deprecate import renamed_args
+from .._shared.checks import PsbenchError
+from .._shared.deprecation import renamed_args
 from ._common import IMAGE_EXT, LUMA, cv2 as _cv2
 
 __all__ = ["read_image", "read_images", "write_image"]

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
-from .._deprecate import renamed_args
-from .._fs import atomic_write
+from .._shared.checks import PsbenchError
+from .._shared.deprecation import renamed_args
+from .._shared.files import atomic_write
 from ._common import cv2 as _cv2
 
 __all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map",

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .._provenance import git_state
+from .._shared.provenance import git_state
 from . import figures as F
 from . import pages as G
 from . import scales as S
@@ -195,7 +195,7 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
 
 
 def main(argv=None) -> int:
-    from .._warnings import install
+    from .._shared.warn import install
 
     install()                           # warnings as one psbench line each
     ap = argparse.ArgumentParser(prog="psbench-report",

@@ -79,7 +79,7 @@ class Link:
 
 def write_atomic(path, data) -> Path:
     """Write text or bytes to ``path`` atomically (:func:`psbench._fs.atomic_write`)."""
-    from psbench._fs import atomic_write
+    from psbench._shared.files import atomic_write
 
     return atomic_write(path, data, fsync=False)
 

@@ -133,8 +133,8 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
     from matplotlib.patches import Patch
 
     import psbench as ps
-    from psbench.integrate import integrate
-    from psbench.metrics import normal_error_map
+    from psbench.integrate.poisson import integrate
+    from psbench.metrics.errors import normal_error_map
 
     out = Path(out)
     pdir = out / "panels"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 
 from . import tables as T
 

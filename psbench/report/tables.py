@@ -49,7 +49,7 @@ def names() -> list[str]:
 def experiment_module(name: str):
     """The module of a registered experiment (None when ``name`` is not registered)."""
     from psbench import registry
-    from psbench._checks import PsbenchError
+    from psbench._shared.checks import PsbenchError
 
     try:
         return registry.get("experiments", name).module
@@ -66,7 +66,7 @@ def _cache_key(name, results):
     """What a resolved grid depends on: the experiment, the store folder, the grid file's
     modification time and the environment its interpolations may read."""
     from psbench import registry
-    from psbench._checks import PsbenchError
+    from psbench._shared.checks import PsbenchError
 
     try:
         path = registry.get("experiments", name).grid
@@ -96,7 +96,7 @@ def grid(name: str, results=None) -> dict:
 def grid_text(name: str) -> str | None:
     """The text of the experiment's grid YAML (None without one)."""
     from psbench import registry
-    from psbench._checks import PsbenchError
+    from psbench._shared.checks import PsbenchError
 
     try:
         path = registry.get("experiments", name).grid

@@ -34,7 +34,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from . import _complete_kernel as _ck
 from . import kernel
 from ._result import Timer, finish, mean_error

@@ -166,7 +166,7 @@ def finish(ctx, b, valid, weights, *, timer, name, method, iterations, info, wan
             weights[:, out] = 0.0
     height = None
     if want_height:
-        from ..integrate import integrate
+        from ..integrate.poisson import integrate
         height = np.asarray(integrate(normals, object_mask=ctx.region, method=ctx.options.integrate_method),
                             dtype=np.float32)
         timer.lap("height")

@@ -8,7 +8,7 @@ expression is an AND, so token order never changes a result.
 from __future__ import annotations
 
 from .. import registry
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 #: presentation order of psbench's own masks
 THESIS_ORDER = ("Th", "NL", "xNL", "SS", "Re", "CS", "Hi", "Sh", "CJ", "RA")

@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import fields
 
 from .. import registry
-from .._checks import PsbenchError, as_images, as_mask, as_normals
+from .._shared.checks import PsbenchError, as_images, as_mask, as_normals
 from . import _engine
 from ._result import Result, Timer
 from ._specs import check_counts, mask_names, mask_specs, method_names

@@ -113,7 +113,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["Options", "Problem", "Fit", "Context", "Lazy", "check_int", "check_number",
            "check_choice", "check_bool"]

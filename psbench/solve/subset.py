@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images, as_S
+from .._shared.checks import PsbenchError, as_images, as_S
 from . import kernel
 
 __all__ = ["n_ransac", "ransac", "cj", "xnl", "xnl_pattern", "xnl_resolve", "null_vector",

@@ -45,7 +45,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ._specs import mask_specs
 
 __all__ = ["TABLE_5_2", "COUNTS", "NAMES", "RANGES", "declared", "resolve_thresholds",

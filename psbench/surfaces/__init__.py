@@ -45,7 +45,11 @@ aliases)`` with ``func(size, **options) -> Surface``, declared under
 ``[project.entry-points."psbench.surfaces"]``; ``make_surface(name, size=...,
 **options)`` passes the options on.
 
-User height maps: :func:`surface_from_height` and :func:`surface_from_file`.
+User height maps: :func:`surface_from_height` and :func:`surface_from_file` (``.npy``,
+16-bit ``.png`` and ``.x3p``). Measured topographies (:class:`Topography`, heights in µm,
+read from X3P files by :func:`psbench.io.read_x3p`) become surfaces through
+:func:`surface_from_topography` (heights divided by the pixel size into pixel units, the
+valid points as the object mask).
 The command ``psbench-surfaces`` (:func:`main`) writes preview PNGs.
 
 All functions are pure (no caches, no global state) and vectorized.
@@ -57,10 +61,12 @@ from ._make import make_surface, surface_from_file, surface_from_height
 from ._preview import main, write_preview
 from ._sombrero import SOMBRERO_HALF, SOMBRERO_LAMBDA, SOMBRERO_PEAKS, sombrero_lambda
 from ._surface import MIN_SIZE, Surface, normals_from_height, pixel_grid
+from ._topography import Topography, read_topography, surface_from_topography
 
 __all__ = ["Surface", "SURFACES", "SOMBRERO_LAMBDA", "SOMBRERO_PEAKS", "SOMBRERO_HALF",
            "MIN_SIZE", "make_surface", "surface_from_height", "surface_from_file",
-           "normals_from_height", "pixel_grid", "sombrero_lambda", "write_preview", "main"]
+           "normals_from_height", "pixel_grid", "sombrero_lambda", "write_preview", "main",
+           "Topography", "read_topography", "surface_from_topography"]
 
 
 def __getattr__(name):

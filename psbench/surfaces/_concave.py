@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 from ._surface import Surface, pixel_grid
 
 __all__ = ["cup", "vgroove", "cup_geometry", "CUP_APERTURE", "VGROOVE_HALF_WIDTH"]

@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import registry
-from .._checks import PsbenchError, as_mask
-from .._deprecate import renamed_args
+from .._shared.checks import PsbenchError, as_mask
+from .._shared.deprecation import renamed_args
 from ._surface import Surface, check_size, finish, normals_from_height
+from ._topography import read_topography, surface_from_topography
 
 __all__ = ["make_surface", "surface_from_height", "surface_from_file"]
 
@@ -110,7 +111,7 @@ def surface_from_height(height, *, object_mask=None, name="custom"):
 
 @renamed_args(renamed={"mask": "object_mask"})
 def surface_from_file(path, *, scale=None, object_mask=None, name=None):
-    """Read a height map from ``.npy`` or 16-bit ``.png`` into a :class:`Surface`.
+    """Read a height map from ``.npy``, 16-bit ``.png`` or ``.x3p`` into a :class:`Surface`.
 
     Parameters
     ----------
@@ -122,10 +123,14 @@ def surface_from_file(path, *, scale=None, object_mask=None, name=None):
         ``v / vmax * scale`` pixels, where ``vmax`` is 65535 (255 for 8-bit)
         and ``scale`` defaults to ``width / 4``: the full 16-bit range spans a
         quarter of the image width.
+        ``.x3p``: an ISO 25178-72 surface (:func:`psbench.io.read_x3p`); heights in µm
+        divided by the file's pixel size in µm give pixel units (times ``scale``, default
+        1); the file's valid points are the object mask (invalid points take their
+        nearest valid neighbour's height).
     scale : float, optional
         See above.
     object_mask : (H, W) bool array_like, optional
-        Object region (default all True).
+        Object region (default all True; for ``.x3p`` it is ANDed with the valid points).
     name : str, optional
         Default: the file's stem.
 
@@ -135,14 +140,18 @@ def surface_from_file(path, *, scale=None, object_mask=None, name=None):
     """
     p = Path(path)
     ext = p.suffix.lower()
-    if ext not in (".npy", ".png"):
-        raise PsbenchError(f"path must end in .npy or .png, got {str(path)!r}")
+    if ext not in (".npy", ".png", ".x3p"):
+        raise PsbenchError(f"path must end in .npy, .png or .x3p, got {str(path)!r}")
     if not p.is_file():
         raise PsbenchError(f"path {str(path)!r} does not exist or is not a file")
     if scale is not None:
         scale = float(scale)
         if not math.isfinite(scale) or scale <= 0:
             raise PsbenchError(f"scale must be a positive finite number, got {scale}")
+    if ext == ".x3p":
+        return surface_from_topography(read_topography(p), object_mask=object_mask,
+                                       scale=1.0 if scale is None else scale,
+                                       name=p.stem if name is None else name)
     if ext == ".npy":
         try:
             arr = np.load(p, allow_pickle=False)

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import registry
-from .._checks import PsbenchError
-from .._fs import atomic_write
+from .._shared.checks import PsbenchError
+from .._shared.files import atomic_write
 from ._make import make_surface
 from ._surface import check_size
 

@@ -1,12 +1,13 @@
 """The :class:`Surface` type and the pixel-grid helpers every surface family shares."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
-from .._deprecate import warn_renamed
+from .._shared.checks import PsbenchError, as_mask
+from .._shared.deprecation import warn_renamed
 
 __all__ = ["Surface", "pixel_grid", "normals_from_height", "MIN_SIZE"]
 
@@ -76,9 +77,10 @@ class Surface:
             object.__setattr__(self, key, value)
 
     def renamed(self, name):
-        """The same surface (arrays shared, not copied) under another name."""
-        out = object.__new__(Surface)
-        out._set(str(name), self.height, self.object_mask, self.normals)
+        """The same surface (arrays shared, not copied) under another name; a subclass
+        (a cartridge case with its pixel size and ground truth) keeps its type and fields."""
+        out = copy.copy(self)
+        object.__setattr__(out, "name", str(name))
         return out
 
     @property

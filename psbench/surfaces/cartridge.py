@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ..registry import SurfaceSpec
 
-__all__ = ["SURFACE"]
+__all__ = ["SURFACE", "MIN_SIZE"]
 
 
 def cartridge(size=2048, **kwargs):
@@ -18,6 +18,11 @@ def cartridge(size=2048, **kwargs):
     return make_cartridge(size, **kwargs)
 
 
+#: ceil(2048 * DEFAULT_PIXEL_SIZE / MAX_PIXEL_SIZE) of psbench.forensic.cartridge: the
+#: smallest size at the default field of view whose pixels resolve the marks (tested)
+MIN_SIZE = 251
+
 SURFACE = SurfaceSpec(name="cartridge", func=cartridge, aliases=("cartridge_case",),
+                      min_size=MIN_SIZE,
                       help="fired cartridge case head (Chapter 7): firing pin, breech-face "
                            "marks, ejector mark, headstamp; gun=, case=, pixel_size= (um)")

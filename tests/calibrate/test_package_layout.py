@@ -49,7 +49,8 @@ def test_calibration_maths_does_no_io(name):
     path = PKG / "calibrate" / name
     used = _imports(path, _module(path))
     assert not {m for m in used if m.startswith(("psbench.io", "psbench.calibrate._steps",
-                                                 "psbench.calibrate._cli", "psbench._fs"))}
+                                                 "psbench.calibrate._cli",
+                                                 "psbench._shared.files"))}
     src = path.read_text()
     for call in ("open(", "np.save", "np.load", "imread", "imwrite", "json."):
         assert call not in src, f"{name} calls {call}"

@@ -90,13 +90,13 @@ def test_single_run_pictures_out_and_outputs(tmp_path):
     assert r.returncode == 0, r.stderr
     lvl, d = _pictures_line(r.stdout)
     assert lvl == "all" and d.parent == tmp_path / "results" / "out" / "adhoc"
-    for f in PICTURES + ("mesh.ply", "mesh.obj", "normals.npy", "height.npy"):
+    for f in PICTURES + ("mesh.ply", "mesh.obj", "normals.npz", "height.npz"):
         assert (d / f).is_file(), f
     info = json.loads((d / "run.json").read_text())
     assert info["run_id"] == d.name and "mean angular error" in info["row"]
     # the stored row and the pictures agree
     df = read_store(tmp_path / "results")
-    ne = np.load(d / "ne.npy")
+    ne = np.load(d / "ne.npz")["ne"]
     assert np.nanmean(ne) == pytest.approx(df.loc[0, "ne_mean"], rel=1e-4)
     # albedo scaled by a robust percentile: its 99th percentile over the object is white
     obj = cv2.imread(str(d / "object_mask.png"), cv2.IMREAD_UNCHANGED) > 0
@@ -107,7 +107,7 @@ def test_single_run_pictures_out_and_outputs(tmp_path):
     assert r.returncode == 0, r.stderr
     lvl, d2 = _pictures_line(r.stdout)
     assert lvl == "pictures" and d2 == tmp_path / "pics"
-    assert (d2 / "normals.png").is_file() and not list(d2.glob("*.npy"))
+    assert (d2 / "normals.png").is_file() and not list(d2.glob("*.np[yz]"))
     assert not (d2 / "mesh.obj").exists()
     # out=DIR on the stored run: the pictures written when it ran are copied there
     r = psbench("size=48", "surface=spheres", "out=pics_again", cwd=tmp_path)

@@ -120,7 +120,7 @@ def test_dead_writers_temporary_files(tmp_path, capsys):
     d = tmp_path / "runs" / "s"
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True).stdout.strip()
-    from psbench._fs import HOST
+    from psbench._shared.files import HOST
 
     old = d / f".b2.parquet.tmp.{dead}.abcd.{HOST}"
     old.write_bytes(b"PAR1 partial")

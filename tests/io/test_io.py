@@ -222,8 +222,8 @@ def test_write_outputs(tmp_path):
     r.valid = np.ones((3, 24, 24), bool)
     r.weights = np.full((3, 24, 24), 0.5, np.float32)
     files = io.write_outputs(tmp_path / "out", r, object_mask=s.object_mask)
-    for f in ("normals.npy", "normals.png", "albedo.npy", "albedo.png", "height.npy", "mesh.ply",
-              "valid.npy", "valid/001.png", "weights/003.png"):
+    for f in ("normals.npz", "normals.png", "albedo.npz", "albedo.png", "height.npz", "mesh.ply",
+              "valid.npz", "valid/001.png", "weights/003.png"):
         assert (tmp_path / "out" / f).is_file(), f
     assert "mesh.ply" in files
     png = cv2.imread(str(tmp_path / "out" / "normals.png"), cv2.IMREAD_UNCHANGED)[..., ::-1]
@@ -292,9 +292,24 @@ def test_write_outputs_from_solve_and_wps(tmp_path):
     sc = render(s, lay, model="lambert")
     res = solve(sc.images, lay, mask="Th", object_mask=s.object_mask, want_height=True)
     io.write_outputs(tmp_path / "ps", res, object_mask=s.object_mask)
-    assert np.array_equal(np.load(tmp_path / "ps" / "normals.npy"), res.normals)
+    assert np.array_equal(np.load(tmp_path / "ps" / "normals.npz")["normals"], res.normals)
     assert len(list((tmp_path / "ps" / "valid").glob("*.png"))) == 8
     w = solve(sc.images, lay, method="wps", object_mask=s.object_mask)
     io.write_outputs(tmp_path / "wps", w, object_mask=s.object_mask)
     assert len(list((tmp_path / "wps" / "ring_weights").glob("*.png"))) == 2  # one per ring
     assert (tmp_path / "wps" / "mesh.ply").is_file()  # height integrated when absent
+
+
+def test_calibrated_pixel_size_reaches_the_dataset(tmp_path):
+    """A capture whose calibration measured its pixel size (mm) reports it in um."""
+    from psbench.calibrate import Calibration
+    from psbench.render import render
+    from psbench.surfaces import make_surface
+
+    s = make_surface("semisphere", size=16)
+    lay = layout("45x4")
+    io.write_dataset(tmp_path / "cap", render(s, lay, model="lambert").images, lay)
+    assert "pixel_size_um" not in io.read_dataset(tmp_path / "cap").meta
+    io.save_calibration(Calibration(pixel_size=0.0049), tmp_path / "cap" / "calibration")
+    ds = io.read_dataset(tmp_path / "cap")
+    assert ds.meta["calibrated"] and ds.meta["pixel_size_um"] == pytest.approx(4.9)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from psbench import io
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.io import _pictures as P
 from psbench.io._relief import height_picture
 from psbench.lights import layout
@@ -36,7 +36,7 @@ def test_write_outputs_every_picture(tmp_path, solved):
                              per_image=False)
     want = {"normals.png", "albedo.png", "input.png", "truth.png", "error.png", "ne_map.png",
             "mask.png", "height.png", "object_mask.png", "mesh.ply", "mesh.obj",
-            "normals.npy", "albedo.npy", "ne.npy", "valid.npy", "height.npy"}
+            "normals.npz", "albedo.npz", "ne.npz", "valid.npz", "height.npz"}
     assert want <= set(files)
     assert not (tmp_path / "valid").exists()                      # per_image=False
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp files
@@ -47,7 +47,7 @@ def test_write_outputs_every_picture(tmp_path, solved):
     truth = _rgb(tmp_path / "truth.png")
     assert np.abs(truth[m] / 255.0 - (s.normals[m] + 1) / 2).max() <= 0.6 / 255
     # NE data and its colour map: white outside the object, coloured inside
-    ne = np.load(tmp_path / "ne.npy")
+    ne = np.load(tmp_path / "ne.npz")["ne"]
     assert np.isnan(ne[~m]).all() and np.isfinite(ne[m]).all()
     nem = _rgb(tmp_path / "ne_map.png")
     assert (nem[~m] == 255).all()

@@ -9,7 +9,7 @@ import pytest
 
 import psbench as ps
 from psbench import registry
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.solve import MASKS, METHODS
 from psbench.solve.base import Fit, Options, check_number
 from psbench.solve.thresholds import resolve_thresholds

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import psbench as ps
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.solve import MASKS, Result, solve
 from psbench.solve.thresholds import resolve_thresholds, t_re, polar_spacing
 

@@ -4,7 +4,7 @@ import itertools
 import numpy as np
 import pytest
 
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.lights import layout
 from psbench.solve import kernel, subset
 

@@ -119,7 +119,7 @@ def test_surface_from_file_npy_and_png(tmp_path):
     (lambda: ps.surface_from_height(np.zeros(8)), "shape"),
     (lambda: ps.surface_from_height(np.zeros((8, 8)), object_mask=np.ones((4, 4), bool)),
      "object_mask"),
-    (lambda: ps.surface_from_file("heights.txt"), ".npy or .png"),
+    (lambda: ps.surface_from_file("heights.txt"), ".npy, .png or .x3p"),
     (lambda: ps.surface_from_file("missing.npy"), "does not exist"),
 ])
 def test_bad_input_gives_clear_errors(call, words):

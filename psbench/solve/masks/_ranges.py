@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._checks import PsbenchError
+from ..._shared.checks import PsbenchError
 
 __all__ = ["SCOPES", "ranges"]
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._checks import PsbenchError
+from ..._shared.checks import PsbenchError
 from ...registry import Mask
 from .. import kernel
 from ._shared import K_LOW, T_NL, T_RE, reflection_valid

@@ -30,8 +30,8 @@ def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson
         True where light i is blocked by another part of the integrated surface.
     height : (H, W) float32
     """
-    from ...integrate import integrate
-    from ...shadowmap import shadow_map
+    from ...integrate.poisson import integrate
+    from ...render.shadowmap import shadow_map
 
     height = integrate(normals, object_mask=object_mask, method=method)
     kw = {} if bias is None else {"bias": bias}

@@ -48,7 +48,7 @@ def apply(images, b, ctx):
     is measured against the observed ones (``ctx.images``). State across rounds (the
     previous prediction, normals and validity) lives in ``ctx.state["SR"]``.
     """
-    from ..._sr import predict, sr_valid
+    from ._sr import predict, sr_valid
 
     o = ctx.options
     st = ctx.state.setdefault("SR", {})

@@ -35,7 +35,9 @@ def _plugins():
     import importlib
     import pkgutil
     pkg = importlib.import_module("psbench.solve.methods")
-    own = {i.name for i in pkgutil.iter_modules(pkg.__path__) if not i.name.startswith("_")}
+    mods = pkgutil.walk_packages(pkg.__path__, pkg.__name__ + ".")  # families' members too
+    own = {i.name.rsplit(".", 1)[-1] for i in mods
+           if not any(p.startswith("_") for p in i.name.split("."))}
     return set(registry.names("methods")) - own
 
 

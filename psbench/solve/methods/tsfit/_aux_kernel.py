@@ -1,0 +1,173 @@
+"""Compiled helpers of tsfit around the fit -- the dark-observation test of the
+weights and the neighbour statistics of the propagation -- and the residuals of
+``robust``'s choice between its two fits.
+
+Each replaces a chain of numpy temporaries over the (k, P) observations or the
+(3, H, W) normals with one pass; every pixel is computed on its own, so results
+do not depend on the number of threads.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._kernel import _DX, _DY, _DZ, _MU, BLOCK, FASTMATH, _light, _model
+
+__all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample"]
+
+#: the 8-neighbourhood as (row, column) offsets
+_DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
+_DX8 = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
+
+
+@njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
+def dark_weights(tab, n, rd, rs, m, lobe, I, valid, margin, ratio, out):
+    """out (k, P) bool: ``valid`` and not dark, where an observation is dark when the
+    model predicts p > margin_i and I < ratio p and I < p - margin_i (float32, as
+    the numpy form of :func:`psbench.solve.methods._tsstart.put_back`). The model is
+    Lambert + Torrance–Sparrow (``lobe``) or Lambert alone (rs, m unused)."""
+    k, P = I.shape
+    nb = (P + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        pr = np.empty(hi - lo, dtype=np.float32)
+        for i in range(k):
+            lt = _light(tab, i)
+            dx, dy, dz, mu = tab[_DX, i], tab[_DY, i], tab[_DZ, i], tab[_MU, i]
+            # the prediction in its own loop (one branch-free loop per model, so
+            # each vectorises), then the test
+            if lobe:
+                for p in range(lo, hi):
+                    pr[p - lo] = _model(lt, float(n[0, p]), float(n[1, p]), float(n[2, p]),
+                                        float(rd[p]), float(rs[p]), float(m[p]) ** 2)
+            else:
+                for p in range(lo, hi):
+                    c = dx * float(n[0, p]) + dy * float(n[1, p]) + dz * float(n[2, p])
+                    pr[p - lo] = mu * float(rd[p]) * c if c > 0.0 else 0.0
+            mg = margin[i]
+            for p in range(lo, hi):
+                v = pr[p - lo]
+                x = I[i, p]
+                dark = (x < ratio * v) & (x < v - mg) & (v > mg)
+                out[i, p] = valid[i, p] & ~dark
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def neighbour_mean(pos, flat, W2, n, fitted, mean, ang):
+    """Mean normal of each fitted pixel's fitted 8-neighbours, normalised (3, P), and
+    the angle (radians) between it and the pixel's normal (NaN where the pixel is
+    not fitted or has no fitted neighbour). ``pos``: the padded grid's pixel index
+    (-1 off the fitted object); ``flat`` (P,): each pixel's place in it; ``W2``:
+    the padded width."""
+    P = flat.shape[0]
+    for p in prange(P):
+        ax = np.float32(0.0)
+        ay = np.float32(0.0)
+        az = np.float32(0.0)
+        if fitted[p]:
+            for o in range(8):
+                q = pos[flat[p] + _DY8[o] * W2 + _DX8[o]]
+                if q >= 0:
+                    ax += n[0, q]
+                    ay += n[1, q]
+                    az += n[2, q]
+        nrm = math.sqrt(ax * ax + ay * ay + az * az)
+        if fitted[p] and nrm > 0.0:
+            mx, my, mz = ax / nrm, ay / nrm, az / nrm
+            cs = mx * n[0, p] + my * n[1, p] + mz * n[2, p]
+            ang[p] = math.acos(min(max(cs, -1.0), 1.0))
+        else:
+            mx = my = mz = math.nan
+            ang[p] = math.nan
+        mean[0, p], mean[1, p], mean[2, p] = mx, my, mz
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def near(pos, flat, W2, changed, fitted, out):
+    """out (P,) bool: fitted pixels with a changed pixel among their 8 neighbours."""
+    P = flat.shape[0]
+    for p in prange(P):
+        hit = False
+        if fitted[p]:
+            for o in range(8):
+                q = pos[flat[p] + _DY8[o] * W2 + _DX8[o]]
+                if q >= 0 and changed[q]:
+                    hit = True
+        out[p] = hit
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
+def _choice_residuals(lt, nx, ny, nz, rho, rs, m2, lx, ly, lz, x):
+    """The residuals (Torrance-Sparrow fit, Lambertian fit) of one observation x under
+    the two fits of :func:`choice_losses`."""
+    dx, dy, dz, _, _, _, mu = lt
+    return (x - _model(lt, nx, ny, nz, rho, rs, m2),
+            x - mu * (dx * lx + dy * ly + dz * lz))
+
+
+@njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
+def choice_losses(tab, bt, rs, m, bl, I, V, all_valid, cap, loss_t, loss_l):
+    """Truncated losses sum_i min(r_i^2, cap) over the valid observations of the two
+    fits ``robust`` chooses between, (P,) each.
+
+    bt (3, P): rho_d n of the Lambert + Torrance–Sparrow fit, with rho_s, m (P,);
+    bl (3, P): rho n of the Lambertian fit (its residual is not clamped in self
+    shadow: it is a plain least-squares fit); I, V (k, P) (V unused when
+    ``all_valid``). Lights outer, pixels inner (the pixel loop vectorises)."""
+    k, P = I.shape
+    nb = (P + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        nrm = np.empty((4, hi - lo))  # the unit normal and rho_d of the TS fit
+        for p in range(lo, hi):
+            bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
+            rho = math.sqrt(bx * bx + by * by + bz * bz)
+            s = 1.0 / max(rho, 1e-30)
+            nrm[0, p - lo], nrm[1, p - lo], nrm[2, p - lo] = bx * s, by * s, bz * s
+            nrm[3, p - lo] = rho
+            loss_t[p] = 0.0
+            loss_l[p] = 0.0
+        rt = np.empty(hi - lo)
+        rl = np.empty(hi - lo)
+        for i in range(k):
+            lt = _light(tab, i)
+            for p in range(lo, hi):
+                j = p - lo
+                r, q = _choice_residuals(lt, nrm[0, j], nrm[1, j], nrm[2, j], nrm[3, j],
+                                         float(rs[p]), float(m[p]) ** 2, float(bl[0, p]),
+                                         float(bl[1, p]), float(bl[2, p]), float(I[i, p]))
+                rt[j] = min(r * r, cap)
+                rl[j] = min(q * q, cap)
+            if all_valid:
+                for p in range(lo, hi):
+                    loss_t[p] += rt[p - lo]
+                    loss_l[p] += rl[p - lo]
+            else:
+                for p in range(lo, hi):
+                    if V[i, p]:
+                        loss_t[p] += rt[p - lo]
+                        loss_l[p] += rl[p - lo]
+
+
+@njit(cache=True, parallel=True, nogil=True, fastmath=FASTMATH)
+def choice_sample(tab, bt, rs, m, bl, I, V, all_valid, pix, abs_t, abs_l):
+    """|residual| of the two fits of :func:`choice_losses` at the pixels ``pix``, into
+    abs_t, abs_l (k, len(pix)) float32 (NaN where not valid)."""
+    k = I.shape[0]
+    Q = pix.shape[0]
+    nb = (Q + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        for j in range(blk * BLOCK, min(Q, (blk + 1) * BLOCK)):
+            p = pix[j]
+            bx, by, bz = float(bt[0, p]), float(bt[1, p]), float(bt[2, p])
+            rho = math.sqrt(bx * bx + by * by + bz * bz)
+            s = 1.0 / max(rho, 1e-30)
+            for i in range(k):
+                r, q = _choice_residuals(_light(tab, i), bx * s, by * s, bz * s, rho,
+                                         float(rs[p]), float(m[p]) ** 2, float(bl[0, p]),
+                                         float(bl[1, p]), float(bl[2, p]), float(I[i, p]))
+                ok = all_valid or V[i, p]
+                abs_t[i, j] = abs(r) if ok else math.nan
+                abs_l[i, j] = abs(q) if ok else math.nan
