@@ -22,8 +22,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from .._bilateral import bilateral_integrate  # noqa: F401  (INTEGRATORS uses it)
-from .._checks import PsbenchError
+from ..integrate.bilateral import bilateral_integrate  # noqa: F401  (INTEGRATORS uses it)
+from .._shared.checks import PsbenchError
 from ..solve import solve
 from ..surfaces import surface_from_height
 from .cmc import CMC_DEFAULTS, CMC_THRESHOLD, cmc

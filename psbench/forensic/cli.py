@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError
+from .._shared.checks import PsbenchError
 
 __all__ = ["main"]
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import PsbenchError, as_images, as_mask
+from .._shared.checks import PsbenchError, as_images, as_mask
 from ..integrate import integrate
 from ..lights import layout as _layout
 from ..solve import solve

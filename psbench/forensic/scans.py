@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
+from .._shared.checks import PsbenchError, as_mask
 from ..io import PsbenchWarning, read_x3p
 from ..surfaces import Topography
 

@@ -269,6 +269,9 @@ def _solve_metrics(p, sc, keep=None):
     if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
                                                 object_mask=sc.mask, weights=w))
+    ve = getattr(res, "ve", None)
+    if ve is not None:  # ground-truth-free validation error (psbench.solve.validation)
+        row.update(ve_mean=_f(ve.mean), ve_median=_f(ve.median))
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):

@@ -24,7 +24,7 @@ from .._shared.deprecation import renamed_args
 from .._shared.files import atomic_write
 from ._common import cv2 as _cv2
 
-__all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map",
+__all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map", "ve_picture",
            "error_picture", "valid_picture", "weights_picture", "height_picture",
            "titled", "montage", "color_bar", "hstack", "object_box", "write_png", "text_size",
            "font", "nice_ticks"]
@@ -270,6 +270,20 @@ def error_picture(ne, object_mask=None, *, vmax=NE_MAX, title=None):
     """NE map with a colour bar (deg) and, when given, a title (e.g. the mean NE)."""
     img = ne_map(ne, object_mask, vmax=vmax)
     bar = color_bar(img.shape[0], 0.0, vmax, label="NE (deg)", over=True)
+    pic = hstack(img, bar)
+    return titled(pic, title) if title else pic
+
+
+def ve_picture(ve, object_mask=None, *, title=None):
+    """Validation-error map (:mod:`psbench.solve.validation`, relative to each pixel's
+    mean intensity) in magma over [0, the object's 99th percentile], with a colour bar;
+    undefined pixels white. Needs no ground truth."""
+    ve = np.asarray(ve, dtype=np.float32)
+    ok = np.isfinite(ve) if object_mask is None else (np.isfinite(ve) & object_mask)
+    vmax = float(np.percentile(ve[ok], 99)) if ok.any() else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    img = colorize(np.where(ok, ve, 0.0), 0.0, vmax, valid=ok)
+    bar = color_bar(img.shape[0], 0.0, vmax, label="ve (held-out |e| / mean I)", over=True)
     pic = hstack(img, bar)
     return titled(pic, title) if title else pic
 

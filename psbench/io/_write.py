@@ -319,6 +319,12 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
         save_pic("ne_map.png", P.ne_map(ne, m))
         save_pic("error.png", P.error_picture(ne, m, title=f"mean NE {mean:.2f} deg "
                                               f"(angle to the true normal)"))
+    ve = getattr(result, "ve", None) if imgs is not None else None
+    if ve is not None:  # ground-truth-free: written for real data as well
+        vm = np.where(m, ve.map, np.nan).astype(np.float32)
+        save_npy("ve.npy", vm)
+        save_pic("ve.png", P.ve_picture(vm, m, title=f"mean ve {ve.mean:.4f} (held-out "
+                                         f"error / pixel intensity)"))
     _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_image,
                  written)
     hgt = getattr(result, "height", None)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
-from .._fs import atomic_write
+from .._shared.checks import PsbenchError, as_mask
+from .._shared.files import atomic_write
 from ..surfaces._topography import Topography, read_topography
 
 __all__ = ["Topography", "read_x3p", "write_x3p", "META_KEYS"]

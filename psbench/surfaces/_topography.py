@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import PsbenchError, as_mask
+from .._shared.checks import PsbenchError, as_mask
 from ._surface import finish, normals_from_height
 
 __all__ = ["Topography", "read_topography", "surface_from_topography", "MAX_INCREMENT_M"]

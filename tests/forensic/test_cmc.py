@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.forensic import cmc
 from psbench.forensic.cmc import CMC_THRESHOLD
 

@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from psbench._checks import PsbenchError
+from psbench._shared.checks import PsbenchError
 from psbench.forensic import breechface as bf
 from psbench.forensic import reconstruct_heights
 from psbench.forensic.recipe import clipped_fractions

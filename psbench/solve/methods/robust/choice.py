@@ -194,8 +194,24 @@ def robust(problem, options: RobustOptions):
     for w in caught:                    # tsfit's own count is robust's, given below
         if not str(w.message).startswith("tsfit:"):
             warnings.warn(str(w.message), w.category, stacklevel=2)
-    return px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
-                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
+    fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
+                 converged=conv, n_iter=options.n_iter, info=info, kn=True)
+    fit.fields["ve"] = _validation(px, keep, use_t, ts.fields.get("ve"))
+    return fit
+
+
+def _validation(px, keep, use_t, ve_t):
+    """The validation error of the chosen fit per pixel: the Torrance-Sparrow fit's
+    where it was chosen, the trimmed Lambertian fit's (held out over its kept
+    observations) elsewhere (:mod:`psbench.solve.validation`)."""
+    from ...validation import lambert_heldout, summarise, validation_map
+    I = px.Ik
+    vals = validation_map(lambert_heldout(I, px.S, keep), keep, I)
+    if ve_t is not None:
+        t = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
+        vals = np.where(use_t, t, vals)
+    idx = np.arange(px.n) if px.full else px.idx
+    return summarise(vals, idx, (px.H, px.W))
 
 
 METHOD = Method(name="robust", func=robust, options=RobustOptions,

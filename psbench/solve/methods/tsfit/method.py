@@ -375,6 +375,8 @@ def _tsfit(problem, opt, start_name):
 
     b = np.zeros((H * W, 3), dtype=np.float32)
     b[idx] = (n * rd).T
+    ve = _validation(L, I, w, n, rd, rs, m, idx, (H, W))
+    clock.stage("validate")
     del I, valid  # the gathered copies: not needed for the output
     if full:
         wfull = w.astype(np.float32)
@@ -390,7 +392,19 @@ def _tsfit(problem, opt, start_name):
                 timings=clock.wall(), cpu_timings=clock.cpu())
     return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
-               converged=plane(conv, True, bool), info=info)
+               converged=plane(conv, True, bool), info=info, fields={"ve": ve})
+
+
+def _validation(L, I, w, n, rd, rs, m, idx, shape):
+    """The validation error of the fitted model (:mod:`psbench.solve.validation`): the
+    model's held-out errors over the observations of positive weight."""
+    from ...validation import summarise, ts_heldout, validation_map
+    vals = np.empty(idx.size, dtype=np.float32)
+    for lo in range(0, idx.size, 1 << 16):
+        s = slice(lo, lo + (1 << 16))
+        e = ts_heldout(I[:, s], L.table, w[:, s], n[:, s], rd[s], rs[s], m[s])
+        vals[s] = validation_map(e, w[:, s], I[:, s])
+    return summarise(vals, idx, shape)
 
 
 class _Clock:
