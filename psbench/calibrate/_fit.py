@@ -12,7 +12,6 @@ import numpy as np
 
 from .._shared.checks import PsbenchError, as_images
 from .._shared.deprecation import renamed_args
-from ..io._common import PsbenchWarning
 
 __all__ = ["hot_pixels", "remove_hot_pixels", "chart_means", "fit_response", "apply_response",
            "polyfit2d", "polyval2d", "flat_field", "sphere_geometry",
@@ -160,7 +159,7 @@ def fit_response(measured, radiance, *, degree=6, anchor=True, max_dip=0.005):
                 # stacklevel 3: the caller, past the renamed_args wrapper
                 warnings.warn(f"response fit of degree {deg0} is not monotone on [0, 1]; "
                               f"using degree {deg} (degree= sets the first degree tried)",
-                              PsbenchWarning, stacklevel=3)
+                              UserWarning, stacklevel=3)
             return c
     raise PsbenchError("no monotone response fit found; check the chart image")
 
