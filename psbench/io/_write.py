@@ -461,9 +461,12 @@ def _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_im
                 raise PsbenchError(f"true_outliers must have shape {a.shape}, got {to.shape}")
             save_pic("mask.png", P.valid_picture(base, a, m, truth=to))
         else:
+            zen = (getattr(result, "info", None) or {}).get("ring_zeniths")
+            rings = name == "ring_weights" and zen is not None and len(zen) == len(a)
             save_pic(f"{name}.png", P.weights_picture(
                 a, m, title="ring weight" if name == "ring_weights" else "weight",
-                vmax=1.0 if name == "ring_weights" else None))
+                vmax=1.0 if name == "ring_weights" else None,
+                labels=[f"{z:g}°" for z in zen] if rings else None))   # the ring's zenith
         if not per_image:
             continue
         (out / name).mkdir(exist_ok=True)

@@ -201,6 +201,9 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
 
 
 def main(argv=None) -> int:
+    from .._shared.warn import install
+
+    install()                           # warnings as one psbench line each
     ap = argparse.ArgumentParser(prog="psbench-report",
                                  description="Rebuild the thesis reports from the results "
                                              "store alone (never solves).",

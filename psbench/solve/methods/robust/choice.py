@@ -191,9 +191,9 @@ def robust(problem, options: RobustOptions):
     info.update(ts_fraction=float(use_t.mean()), sigma=sigma / px.scale,
                 rho_s=rho_s if not np.ndim(rho_s) else float(np.median(rho_s)),
                 m=m if not np.ndim(m) else float(np.median(m)))
-    msgs = [str(w.message) for w in caught if not str(w.message).startswith("tsfit:")]
-    for msg in msgs:
-        warnings.warn(msg, RuntimeWarning, stacklevel=2)
+    for w in caught:                    # tsfit's own count is robust's, given below
+        if not str(w.message).startswith("tsfit:"):
+            warnings.warn(str(w.message), w.category, stacklevel=2)
     fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
     fit.fields["ve"] = _validation(px, keep, use_t, ts.fields.get("ve"))

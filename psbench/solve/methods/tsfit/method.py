@@ -19,6 +19,7 @@ from ...base import Fit, Options, check_choice, check_int, check_number
 from . import _lm, _grid as _tsgrid, _prop as _tsprop, _shared_lobe as _tsshared
 from ._start import (SIGMA_PIXELS, STARTS, count, lambert_pred, noise_sigma, put_back,
                      resolve_start, start_weights, take, unit)
+from ...._shared.warn import ConvergenceWarning
 
 __all__ = ["TsfitOptions", "tsfit", "METHOD"]
 
@@ -363,8 +364,9 @@ def _tsfit(problem, opt, start_name):
     nconv = int((~conv).sum())
     if nconv:
         warnings.warn(f"tsfit: {nconv} of {P} object pixels did not converge within "
-                      f"lm_max_iter={opt.lm_max_iter}; they keep their best estimate",
-                      RuntimeWarning, stacklevel=2)
+                      f"lm_max_iter={opt.lm_max_iter} and keep their best estimate (a "
+                      "larger options.lm_max_iter lets them go on)",
+                      ConvergenceWarning, stacklevel=2)
 
     def plane(v, fill=0, dtype=np.float32):
         out = np.full(H * W, fill, dtype=dtype)
