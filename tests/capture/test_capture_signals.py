@@ -14,7 +14,9 @@ _BIN = Path(sys.executable).parent / "psbench-capture"
 
 
 def _start(tmp_path, out="cap"):
-    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=256", f"out={out}", "progress=false"],
+    # 768 px: a capture of several seconds, so the signal lands mid-capture and not
+    # after the last frame (a 256 px capture ends about a second after its folder appears)
+    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=768", f"out={out}", "progress=false"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     t0 = time.time()
