@@ -136,7 +136,7 @@ def test_sweep_over_method_options(tmp_path):
     args = ["-m", "size=32", "mask=Th-Hi", "options.max_iter=0,1", "hydra/launcher=basic"]
     r = psbench(*args, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    df = _rows(tmp_path / "results")
+    df = _rows(tmp_path / "results", sweep=None)   # a -m sweep has its own folder
     assert sorted(df["options"]) == ['{"max_iter": 0}', '{"max_iter": 1}']
     assert df["run_id"].is_unique
 
