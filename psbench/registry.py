@@ -187,12 +187,13 @@ class Experiment:
 
 
 # ----------------------------------------------------------------------------- groups
-#: group key -> (entry-point group, attribute that holds the spec, built-in packages)
+#: group key -> (entry-point group, attribute that holds the spec, built-in packages or
+#: modules: an upper layer's piece is named here, not imported by the lower layer)
 GROUPS = {
     "masks": ("psbench.masks", "MASK", ("psbench.solve.masks",)),
     "methods": ("psbench.methods", "METHOD", ("psbench.solve.methods",)),
     "experiments": ("psbench.experiments", None, ("psbench.experiments",)),
-    "surfaces": ("psbench.surfaces", "SURFACE", ("psbench.surfaces",)),
+    "surfaces": ("psbench.surfaces", "SURFACE", ("psbench.surfaces", "psbench.forensic.surface")),
 }
 _TYPES = {"masks": Mask, "methods": Method, "experiments": Experiment, "surfaces": SurfaceSpec}
 
@@ -219,7 +220,10 @@ def _wrap(group, name, obj):
 
 def _public_modules(pkg):
     """The public modules of a package, and of its public subpackages (a family of
-    several modules, e.g. ``solve/methods/robust/``), depth first."""
+    several modules, e.g. ``solve/methods/robust/``), depth first; a module: itself."""
+    if not hasattr(pkg, "__path__"):
+        yield pkg
+        return
     for info in pkgutil.iter_modules(getattr(pkg, "__path__", []), pkg.__name__ + "."):
         if info.name.rsplit(".", 1)[-1].startswith("_"):
             continue

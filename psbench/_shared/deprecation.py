@@ -101,6 +101,8 @@ def renamed_args(*, positional=(), renamed=None):
 MOVED = {
     "psbench.shadowmap": "psbench.render.shadowmap",
     "psbench.solve.wps": "psbench.solve.methods.wps",
+    "psbench.report.html": "psbench.io.html",
+    "psbench.surfaces.cartridge": "psbench.forensic.surface",
     **{f"psbench.solve.methods.{name}": f"psbench.solve.methods.robust.{name}"
        for name in ("trim", "l1", "sbl", "rpca", "huber", "cauchy", "tukey")},
 }

@@ -18,6 +18,9 @@ __all__ = ["main"]
 
 def main(argv=None):
     """``psbench-calibrate <step> ...``; see ``psbench-calibrate -h``."""
+    from .._shared.warn import install
+
+    install()                           # warnings as one psbench line each
     ap = argparse.ArgumentParser(
         prog="psbench-calibrate",
         description="Calibrate a photometric-stereo rig (thesis Chapter 6). Each step reads "

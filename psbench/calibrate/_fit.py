@@ -156,8 +156,10 @@ def fit_response(measured, radiance, *, degree=6, anchor=True, max_dip=0.005):
         dip = (np.maximum.accumulate(v) - v).max() / span if span > 0 else np.inf
         if span > 0 and dip <= max_dip and v[-1] > v[0]:
             if deg != deg0:
+                # stacklevel 3: the caller, past the renamed_args wrapper
                 warnings.warn(f"response fit of degree {deg0} is not monotone on [0, 1]; "
-                              f"using degree {deg}", UserWarning, stacklevel=2)
+                              f"using degree {deg} (degree= sets the first degree tried)",
+                              UserWarning, stacklevel=3)
             return c
     raise PsbenchError("no monotone response fit found; check the chart image")
 

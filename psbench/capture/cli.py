@@ -33,6 +33,7 @@ Exit status: 0 on success, 2 on bad arguments or capture errors, 130 on Ctrl-C.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from .._shared.checks import PsbenchError
 
@@ -102,11 +103,16 @@ def default_out(rig, *, now=None):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
+    restore = _stop_signals()
     try:
         args = _parse(argv)
         return _run(args)
-    except KeyboardInterrupt:
-        print("\npsbench-capture: interrupted; OFF sent to the LED controller, no output folder written",
+    except KeyboardInterrupt as exc:
+        why = _STOPPED.get("signal") or "SIGINT"
+        state = getattr(exc, "led_state", None)
+        leds = (f"LEDs off (STATE? {state})" if state is not None
+                else "OFF sent to the LED controller")
+        print(f"\npsbench-capture: interrupted ({why}); {leds}; partial output folder removed",
               file=sys.stderr)
         return 130
     except PsbenchError as e:
@@ -116,6 +122,54 @@ def main(argv=None):
         print(f"psbench-capture: error: {e.strerror or e}: {e.filename or ''}".rstrip(": "),
               file=sys.stderr)
         return 2
+    finally:
+        restore()
+
+
+_STOPPED = {}
+
+
+def _stop_signals():
+    """SIGTERM and SIGHUP stop a capture as Ctrl-C does (KeyboardInterrupt: LEDs off,
+    partial folder removed); a second signal during that cleanup is ignored. Returns
+    the function restoring the previous handlers."""
+    import signal
+    import threading
+
+    _STOPPED.clear()
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    sigs = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+
+    def stop(signum, frame):
+        if _STOPPED:                           # cleaning up after the first one
+            return
+        _STOPPED["signal"] = signal.Signals(signum).name
+        raise KeyboardInterrupt
+
+    old = {s: signal.signal(s, stop) for s in sigs}
+
+    def restore():
+        for s, h in old.items():
+            signal.signal(s, h)
+    return restore
+
+
+def _led_state(ctl, exc):
+    """After an interruption: ask the controller (``STATE?``) what it lights now."""
+    try:
+        st = ctl.state()
+        exc.led_state = " ".join(str(v) for v in (st if isinstance(st, (list, tuple)) else [st]))
+    except Exception:  # noqa: BLE001 - the message says OFF was sent either way
+        pass
+
+
+def _clean_partials(out):
+    from ..io._write import stale_partials
+
+    for p in stale_partials(Path(out).expanduser().absolute().parent):
+        print(f"psbench-capture: removed {p}, a partial folder left by a capture that was "
+              "killed", file=sys.stderr)
 
 
 def _run(args):
@@ -151,10 +205,15 @@ def _run(args):
         simrig = SimRig(RigConfig(lights=lights, current_mA=current, **kw))
         tlist = () if targets == "none" else (("sphere", "white", "chart", "grid")
                                               if targets == "all" else tuple(targets.split(",")))
+        _clean_partials(out)
         with SimController(simrig.k, fault=fault, after=after) as dev:
             with LedController(dev.port, timeout=timeout) as ctl:
-                path = capture_all(simrig, ctl, out, device=dev, progress=progress, overwrite=overwrite,
-                                   targets=tlist)
+                try:
+                    path = capture_all(simrig, ctl, out, device=dev, progress=progress,
+                                       overwrite=overwrite, targets=tlist)
+                except KeyboardInterrupt as exc:
+                    _led_state(ctl, exc)
+                    raise
         print(path)
         return 0
     from .camera import FolderCamera, OpenCVCamera
@@ -174,6 +233,7 @@ def _run(args):
         led_idx = None if leds is None else [int(x) for x in leds.split(",")]
     except ValueError:
         raise PsbenchError(f"leds={leds!r}: expected comma-separated LED numbers, e.g. 3,4,5") from None
+    _clean_partials(out)
     with LedController(port, baudrate=baud, timeout=timeout) as ctl:
         cam = OpenCVCamera(int(cam_arg), exposure=None if exposure is None else float(exposure)) \
             if cam_arg.isdigit() else FolderCamera(cam_arg)
@@ -182,6 +242,9 @@ def _run(args):
             path = capture(ctl, cam, out, lay, current_mA=current, leds=led_idx,
                            meta={"rig": "serial", "target": target, "exposure": exposure},
                            progress=progress, overwrite=overwrite)
+        except KeyboardInterrupt as exc:
+            _led_state(ctl, exc)
+            raise
         finally:
             cam.close()
     print(path)

@@ -46,9 +46,12 @@ correlation of the common valid pixels at that translation. Translations are in
 pixels, as cmcR's, so on images at another pixel size than 6.25 µm convert the
 tolerance (``translation_tol = 125 / pixel_size`` keeps cmcR's 125 µm).
 
-Cost: one comparison is two batched FFT correlations (one forward transform of the
-target regions and of their squares, two inverse transforms) per angle over all cells;
-no loop over pixels. CCFmax of the whole scans is measured at the consensus pose, with
+Cost: per angle, three batched forward transforms of the target regions (values,
+squares, mask) and three inverse ones (correlation, target energy and overlap under
+each cell) over all cells at once; no loop over pixels. Two ~560^2 shared scans (33
+cells, 21 angles, 216^2 transforms): 2.6 s per pair on 2 shared cores at a load average
+of ~4.5 (benchmarks/bench_cmc.py; whole-map :func:`~psbench.forensic.compare` 0.85 s in
+the same run), of which ~55 % are the transforms. CCFmax of the whole scans is measured at the consensus pose, with
 a small translation search around it (:func:`cmc` ``ccf``).
 """
 from __future__ import annotations

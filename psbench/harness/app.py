@@ -28,7 +28,9 @@ SIGTERM prints one line (how many runs are stored) and exits with code 130.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
+import re
 import signal
 import sys
 from pathlib import Path
@@ -79,6 +81,32 @@ def _entries(argv):
             a = "++" + a
         out.append(a)
     return out
+
+
+def _name_sweep(argv):
+    """A ``-m`` sweep without ``sweep=`` is stored under a folder named from its swept
+    parameters (``mask=Th,RA zenith=30,60`` -> ``mask=Th,RA_zenith=30,60``), so a second
+    sweep does not overwrite the first one's rows folder, pictures or comparison sheet."""
+    if not ("-m" in argv or "--multirun" in argv):
+        return argv
+    keys = [a.lstrip("+").split("=", 1)[0] for a in argv if "=" in a and not a.startswith("-")]
+    if "sweep" in keys or "experiment" in keys:
+        return argv
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(
+            [a for a in argv if not a.startswith("-")])
+    except Exception:  # noqa: BLE001 - a syntax error: Hydra reports it in its own words
+        return argv
+    parts = sorted(o.input_line.lstrip("+") for o in parsed      # sorted: same sweep, same name
+                   if o.is_sweep_override() and not o.key_or_group.startswith("hydra"))
+    if not parts:
+        return argv
+    name = re.sub(r"[^A-Za-z0-9._=,+-]+", "-", "_".join(parts)).strip("-")
+    if len(name) > 80:                      # long value lists: a readable head + a hash
+        name = name[:70] + "-" + hashlib.sha1(name.encode()).hexdigest()[:8]
+    return argv + [f"sweep='{name}'"]           # quoted: '=' and ',' are Hydra syntax
 
 
 def _multirun() -> bool:
@@ -147,8 +175,7 @@ def _task(cfg):
         line = format_row(row) if row is not None else rid
         print(f"skipped (stored{', failed' if stored == 'failed' else ''}): {line}", flush=True)
         if stored == "ok" and not _pictures_present(pics):
-            print(f"no pictures in {pics}/ (stored before pictures were written, or with "
-                  "outputs=none): rerun=true makes them", flush=True)
+            _stored_pictures(cfg, root, sweep, rid, pics)
         return {**done, "status": stored, "skipped": True}
     preflight([params], root=root, sweep=sweep)     # configuration errors: before any work
     full = OmegaConf.to_container(cfg, resolve=True)
@@ -205,9 +232,22 @@ class _one_line_warnings:
         for w in self._caught:
             if issubclass(w.category, PsbenchWarning):
                 print(f"psbench: warning: {w.message}", file=sys.stderr, flush=True)
-            else:
+            else:                       # one line too (psbench._warnings.one_line)
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         return False
+
+
+def _stored_pictures(cfg, root, sweep, rid, pics):
+    """``out=DIR`` on a stored run: copy the pictures written when it ran (they are in
+    the default folder) into DIR; say how to make them when there are none."""
+    from . import outputs as O
+
+    default = O.sweep_dir(out=None, root=root, sweep=sweep, cwd=_cwd()) / rid
+    if O.copy_stored(default, pics):
+        print(f"pictures (stored run, copied from {default}/): {pics}/", flush=True)
+        return
+    print(f"no pictures in {pics}/ (the run was stored with outputs=none, or its pictures "
+          f"were removed from {default}/): rerun=true makes them", flush=True)
 
 
 def _pictures_present(pics):
@@ -252,8 +292,12 @@ def _experiment(cfg, root):
             prepare(root, scale)
     else:                                # an inline mapping (name, grids, fixed, scales)
         exp = experiment_spec(cfg.experiment)
+    if int(cfg.jobs) == 0:
+        raise PsbenchError("jobs=0: expected -1 (all cores), N >= 1 workers, or -N (all "
+                           "cores but N-1)")
     runs = expand(exp, scale, _base_params(cfg), base_dir=_cwd())
     name = str(exp["name"])
+    _refuse_ignored(cfg, runs, name, scale)
     from .params import run_id
 
     _WATCH.update(root=root, runs={name: [run_id(p) for p in runs]})
@@ -268,10 +312,42 @@ def _experiment(cfg, root):
                        label=name)
     for r in out["results"] or []:
         if r["status"] != "ok":
-            print(f"failed {r['run_id']}: {r['error']}", file=sys.stderr)
+            print(f"failed {r['run_id'] or '(a shard job: its runs are not stored)'}: "
+                  f"{r['error']}", file=sys.stderr)
     if out["failed"]:
         _EXIT["code"] = 1
     return {k: v for k, v in out.items() if k != "results"}
+
+
+def _refuse_ignored(cfg, runs, name, scale):
+    """A run parameter given on the command line that the experiment's grid sets to
+    another value (or ``sweep=``, the store folder being the experiment's) would be
+    silently dropped: refused (one line) before any work."""
+    from hydra.core.hydra_config import HydraConfig
+
+    try:
+        over = HydraConfig.get().overrides.task
+    except ValueError:
+        return
+    given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[-1] for o in over if "=" in o}
+    if "sweep" in given:
+        raise PsbenchError(f"sweep={given['sweep']}: experiments store their rows in "
+                           f"runs/{name}/; leave sweep= out (it names command-line sweeps)")
+    from .params import normalize
+
+    params = {p.name for p in S.PARAMS}
+    try:
+        base = normalize(_base_params(cfg), base_dir=_cwd())
+    except Exception:  # noqa: BLE001 - the runs' own checks (preflight) report bad values
+        return
+    for key, text in given.items():
+        if key not in params or key not in base or not runs:
+            continue
+        vals = sorted({str(p.get(key)) for p in runs})
+        if vals != [str(base[key])]:            # the grid set it: the value given is dropped
+            shown = ", ".join(vals[:4]) + (" ..." if len(vals) > 4 else "")
+            raise PsbenchError(f"{key}={text}: experiment {name} sets {key} itself (scale="
+                               f"{scale}: {shown}); leave {key}= out, or choose another scale")
 
 
 def main(args=None):
@@ -284,6 +360,9 @@ def main(args=None):
     """
     from .supervise import MAIN_PID_ENV
 
+    from .._shared.warn import install
+
+    install()                                     # warnings as one psbench line each
     args = list(sys.argv[1:] if args is None else args)
     if "--version" in args:
         import psbench
@@ -295,7 +374,7 @@ def main(args=None):
 
         sys.stdout.write(help_text())
         return
-    argv = _entries(_fix_argv(args))
+    argv = _name_sweep(_entries(_fix_argv(args)))
     sys.argv = [sys.argv[0]] + argv
     _EXIT["code"] = 0
     _WATCH.clear()
@@ -307,6 +386,9 @@ def main(args=None):
         import hydra
 
         S.register_hydra()
+        from .launcher import register
+
+        register()                     # -m: a pool that survives a lost worker
         try:
             _precheck(argv, _WATCH)
         except PsbenchError as exc:

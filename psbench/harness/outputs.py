@@ -29,7 +29,7 @@ import numpy as np
 from .._shared.checks import PsbenchError
 
 __all__ = ["LEVELS", "MARKER", "level", "run_dir", "sweep_dir", "check_dir", "present",
-           "write_run", "read_run_info"]
+           "write_run", "copy_stored", "read_run_info"]
 
 LEVELS = ("pictures", "all", "none")
 #: the file that marks a folder as a psbench run's outputs
@@ -135,6 +135,23 @@ def write_run(path, *, lvl, row, result, scene, line) -> float:
         atomic_write(tmp / MARKER, json.dumps(info, indent=1, default=json_default),
                      fsync=False)
     return time.perf_counter() - t0
+
+
+def copy_stored(src, dest) -> bool:
+    """Copy a stored run's outputs folder ``src`` to ``dest`` (replaced atomically as a
+    whole), for ``out=DIR`` on a run stored earlier; False when ``src`` holds none."""
+    import shutil
+
+    from ..io import atomic_dir
+
+    src, dest = Path(src), Path(dest)
+    if src.resolve() == dest.resolve() or not present(src) or src == dest:
+        return False
+    with atomic_dir(dest, overwrite=True) as tmp:
+        for f in src.iterdir():
+            if f.is_file():
+                shutil.copy2(f, tmp / f.name)
+    return True
 
 
 def read_run_info(path) -> dict | None:

@@ -153,7 +153,7 @@ def _mini_scene(p):
                     else make_surface(s, size=max(MINI, _min_size(s))))
             lay = layout(p["lights"])
             scene = render(mini, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"])
+                           seed=p["seed"], quantize=p["quantize"], **(p.get("render") or {}))
             return scene.images, lay, mini.object_mask
         lay = _data_lights(p["data"])
         if lay is None:

@@ -125,7 +125,8 @@ class _Scene:
                 self.pixel_size = getattr(surf, "pixel_size", None)  # a cartridge case's
             lay = layout(p["lights"])
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
-                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0)
+                           seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0,
+                           **(p.get("render") or {}))
             self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
@@ -269,6 +270,9 @@ def _solve_metrics(p, sc, keep=None):
     if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
                                                 object_mask=sc.mask, weights=w))
+    ve = getattr(res, "ve", None)
+    if ve is not None:  # ground-truth-free validation error (psbench.solve.validation)
+        row.update(ve_mean=_f(ve.mean), ve_median=_f(ve.median))
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):

@@ -11,7 +11,9 @@ One row per run. Column groups:
   are json text with sorted keys, null when empty;
 - metrics (:data:`METRIC_COLUMNS`), ``qf_sr`` the QF of the masked observations
   against those of true secondary fraction above ``t_sr`` (scenes rendered with
-  ``bounces`` > 0), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
+  ``bounces`` > 0), ``ve_mean`` / ``ve_median`` the mean and median of the
+  ground-truth-free validation error map (``Result.ve``, :mod:`psbench.solve.validation`;
+  relative to each pixel's mean intensity), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
   ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
   0 when the scene came from the chunk's cache; ``t_solve``: the solve, after an
@@ -59,6 +61,8 @@ _METRICS = [
     ("qf_total", pa.float64()),
     ("qf_sr", pa.float64()),
     ("cond", pa.float64()),
+    ("ve_mean", pa.float64()),
+    ("ve_median", pa.float64()),
     ("t_render", pa.float64()),
     ("t_solve", pa.float64()),
     ("t_total", pa.float64()),

@@ -135,6 +135,13 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
 
             got = {r["run_id"] for r in results}
             stored = stored_status(root, sweep)
+            for c in pending:            # stored by the lost pool: counted, not redone
+                for rid in (run_id(p) for p in c):
+                    if rid in stored and rid not in got:
+                        got.add(rid)
+                        results.append({"run_id": rid, "status": stored[rid], "error": None,
+                                        "t_total": None})
+                        prog.update(1, stored[rid] != "ok")
             pending = [[p for p in c if run_id(p) not in got and run_id(p) not in stored]
                        for c in pending]
             pending = [c for c in pending if c]
@@ -144,8 +151,8 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
             if attempt == POOL_RESTARTS:
                 prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
                                   "runs are stored: run the same command again to resume\n")
-                results.append({"run_id": None, "status": "failed", "error": lost,
-                                "t_total": None})
+                results.extend({"run_id": run_id(p), "status": "failed", "error": lost,
+                                "t_total": None} for c in pending for p in c)
                 return results
             prog.stream.write(f"\na worker process was lost ({lost}); restarting the pool "
                               f"for the {sum(map(len, pending))} runs not stored\n")

@@ -141,7 +141,7 @@ def build_sheet(runs, out_dir, *, axes=None, title="psbench comparison", stem="c
     import pandas as pd
 
     from ..io._pictures import write_png
-    from ..report.html import Link, to_html, write_atomic
+    from ..io.html import Link, to_html, write_atomic
     from ._rows import rank, varying
 
     out_dir = Path(out_dir)

@@ -258,6 +258,39 @@ def _bounces(value, ctx):
     return v or None
 
 
+#: the render options a run may set through ``render`` (the others are run parameters)
+RENDER_OPTIONS = ("rho_d", "rho_s", "m", "phong_m", "roughness", "f0", "albedo_texture",
+                  "second_material", "light_error", "power_error", "light_distance", "falloff",
+                  "ambient", "saturation", "gamma")
+
+
+def _render(value, ctx):
+    """Render options: known names, values checked as render checks them."""
+    value = value or {}
+    if not isinstance(value, dict):
+        raise PsbenchError(f"render must be a mapping of render options, got {value!r}")
+    value = {str(a): value[a] for a in sorted(value)}
+    bad = sorted(set(value) - set(RENDER_OPTIONS))
+    if bad:
+        raise PsbenchError(f"render: unknown option(s) {bad}; valid: {', '.join(RENDER_OPTIONS)}")
+    from ..render import _departures
+
+    dep = {k: value.get(k, d) for k, d in (
+        ("albedo_texture", 0.0), ("second_material", None), ("light_error", 0.0),
+        ("power_error", 0.0), ("light_distance", None), ("ambient", 0.0),
+        ("saturation", None), ("gamma", 1.0))}
+    try:
+        _departures.check(**dep)
+        for k in ("rho_d", "rho_s", "m", "phong_m", "roughness", "f0"):
+            if k in value:
+                as_float(value[k], k)
+        if "falloff" in value:
+            value["falloff"] = as_bool(value["falloff"], "falloff")
+    except PsbenchError as exc:
+        raise PsbenchError(f"render: {exc}") from None
+    return value
+
+
 def _options(value, ctx):
     """Method options: a mapping checked by the method's options class; values equal
     to the class's defaults are dropped (``options.max_iter=10`` is the default run)."""
@@ -312,6 +345,12 @@ PARAMS: tuple[Param, ...] = (
           "only; 1 or 2: secondary light, ground truth secondary_fraction)", nullable=True,
           kinds=_RUN, synthetic=True, scene=True, hashed="unless_default", normalize=_bounces,
           metavar="0|1|2"),
+    Param("render", "mapping", {}, "more render options (psbench.render): material "
+          "(rho_d, rho_s, m, roughness, f0, phong_m) and departures from the solvers' model "
+          "(albedo_texture, second_material, light_error, power_error, light_distance, "
+          "falloff, ambient, saturation, gamma): render.gamma=2.2", kinds=_RUN,
+          synthetic=True, scene=True, hashed="unless_default", normalize=_render,
+          metavar="{}"),
     Param("size", "int", 512, "image side in pixels (named surfaces)", kinds=_RUN,
           synthetic=True, scene=True, normalize=_size, metavar="PIXELS"),
     Param("mask", "str", "Th", "mask expression: mask names joined by '-' (Th-Hi-Re-Sh); None: "

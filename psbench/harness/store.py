@@ -16,10 +16,13 @@ reader sees either the whole file or nothing. A run is identified by ``(sweep,
 run_id)``; re-running it replaces its file, and readers keep the latest row (largest
 ``utc``): until the next compaction a re-run compacted run is in two files.
 
-Integrity: files are written with Parquet page checksums, and every read verifies them;
-a file whose schema version is the current one must hold exactly the current columns
-and types. A file failing either check is named in a :class:`StoreWarning` and skipped
-(``psbench-results verify`` lists them). Compactions of one sweep are serialized by a
+Integrity: files are written with Parquet page checksums and a digest of their values
+in the footer, and every read verifies both; a file whose schema version is the current
+one must hold exactly the current columns and types. A file failing a check is named in
+a :class:`StoreWarning` and skipped (``psbench-results verify`` lists them); the skip
+check of the runners (:func:`stored_status`) and compaction move it aside to
+``<root>/corrupt/<sweep>/<name>.<utc>`` (kept, never deleted), so its runs are computed
+again. Compactions of one sweep are serialized by a
 lock file (``runs/<sweep>/.compact.lock``) and a per-run file is removed only after its
 row was read back from the new compact file. Stores of the previous layout
 (``<root>/compact/<sweep>.parquet``) are read, and moved by the next compaction.
@@ -81,8 +84,26 @@ def _legacy_compact(root, sweep) -> Path:
     return default_root(root) / "compact" / f"{_check_name(sweep)}.parquet"
 
 
+#: footer key holding the digest of the file's values (:func:`_digest`)
+DIGEST_KEY = b"psbench.values_sha256"
+
+
+def _digest(table: pa.Table) -> bytes:
+    """sha256 of every value of ``table``, column by column: a changed value that the
+    page checksums miss (a flip in a page header or the footer) still fails the read."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in table.column_names:
+        h.update(name.encode() + b"\0" + repr(table.column(name).to_pylist()).encode() + b"\0")
+    return h.hexdigest().encode()
+
+
 def _write_parquet(table: pa.Table, fh) -> None:
-    pq.write_table(table, fh, compression="zstd", write_page_checksum=True)
+    meta = dict(table.schema.metadata or {})
+    meta[DIGEST_KEY] = _digest(table)
+    pq.write_table(table.replace_schema_metadata(meta), fh, compression="zstd",
+                   write_page_checksum=True)
 
 
 def _atomic_write(table: pa.Table, path: Path) -> Path:
@@ -167,38 +188,82 @@ def _check_schema(path, schema):
     return None
 
 
-def _read_file(path: Path, columns=None, *, missing_ok=False):
-    """Read a store file conformed to SCHEMA, verifying its page checksums; None (with
-    a warning) if corrupt/foreign. A file that vanished raises :class:`_Vanished` when
-    ``missing_ok`` (the caller re-lists), else it is skipped silently."""
+def _read_file(path: Path, columns=None, *, missing_ok=False, set_aside=False):
+    """Read a store file conformed to SCHEMA, verifying its page checksums and its
+    values' digest; None (with a warning) if corrupt/foreign. A file that vanished
+    raises :class:`_Vanished` when ``missing_ok`` (the caller re-lists), else it is
+    skipped silently. ``columns`` selects columns after the whole file was read and
+    verified (a run is "stored" only when its whole row reads back). With
+    ``set_aside``, a corrupt file is moved to ``<root>/corrupt/`` (:func:`_set_aside`)
+    so that its runs are computed again."""
     try:
-        pf = pq.ParquetFile(path, page_checksum_verification=True)
-        schema = pf.schema_arrow
-        meta = schema.metadata or {}
-        names = set(schema.names)
-        if META_KEY not in meta or not set(REQUIRED) <= names:
-            warnings.warn(f"psbench results store: skipping {path}: not a psbench results "
-                          f"file (missing schema metadata or columns {list(REQUIRED)})",
-                          StoreWarning, stacklevel=3)
-            return None
-        bad = _check_schema(path, schema)
-        if bad is not None:
-            warnings.warn(f"psbench results store: skipping {path}: corrupt ({bad})",
-                          StoreWarning, stacklevel=3)
-            return None
-        cols = None if columns is None else [c for c in columns if c in names]
-        table = pf.read(columns=cols)
-        if columns is not None:
-            return table
-        return conform(table)
+        with open(path, "rb") as fh:
+            ident = os.fstat(fh.fileno()).st_ino
+            why = _check_file(path, fh)
+            if isinstance(why, pa.Table):
+                table = why
+                if columns is not None:
+                    return table.select([c for c in columns if c in table.column_names])
+                return conform(table)
     except FileNotFoundError:
         if missing_ok:
             raise _Vanished(path) from None
         return None
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is skipped, never fatal
-        warnings.warn(f"psbench results store: skipping {path}: unreadable ({type(exc).__name__}: "
-                      f"{exc})", StoreWarning, stacklevel=3)
+    if why.startswith("not a psbench"):
+        warnings.warn(f"psbench results store: skipping {path}: {why}", StoreWarning,
+                      stacklevel=3)
         return None
+    moved = _set_aside(path, ident) if set_aside else None
+    tail = (f"; moved aside to {moved}, its runs will be computed again" if moved else
+            "; could not be moved aside (read-only store?)" if set_aside else "")
+    warnings.warn(f"psbench results store: skipping {path}: {why}{tail}", StoreWarning,
+                  stacklevel=3)
+    return None
+
+
+def _check_file(path, fh):
+    """The file's whole table when it reads back intact, else why not (text)."""
+    try:
+        pf = pq.ParquetFile(fh, page_checksum_verification=True)
+        schema = pf.schema_arrow
+        meta = schema.metadata or {}
+        names = set(schema.names)
+        if META_KEY not in meta or not set(REQUIRED) <= names:
+            return (f"not a psbench results file (missing schema metadata or columns "
+                    f"{list(REQUIRED)})")
+        bad = _check_schema(path, schema)
+        if bad is not None:
+            return f"corrupt ({bad})"
+        table = pf.read()
+        want = meta.get(DIGEST_KEY)
+        if want is not None and _digest(table) != want:
+            return "corrupt (its values do not match the digest written with them)"
+        return table
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is skipped, never fatal
+        return f"unreadable ({type(exc).__name__}: {exc})"
+
+
+def _set_aside(path: Path, ident):
+    """Move the corrupt file ``path`` (inode ``ident``, as read) to
+    ``<root>/corrupt/<sweep>/<name>.<utc>`` (kept for inspection, out of the readers'
+    way); a newer file written at ``path`` meanwhile is put back. Returns the new path,
+    or None when it could not be moved (read-only store, already moved)."""
+    path = Path(path)
+    root = path.parent.parent.parent if path.parent.parent.name == "runs" else path.parent.parent
+    stamp = _utcnow().strftime("%Y%m%dT%H%M%S%f")
+    dest = root / "corrupt" / path.parent.name / f"{path.name}.{stamp}"
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        os.rename(path, dest)
+    except OSError:
+        return None
+    with contextlib.suppress(OSError):
+        if dest.stat().st_ino != ident:          # not the file that failed: put it back
+            with contextlib.suppress(FileExistsError):
+                os.link(dest, path)
+            dest.unlink()
+            return None
+    return dest
 
 
 def _files(root: Path, sweep=None, per_run=True):
@@ -289,9 +354,12 @@ def read_store(root=None, experiment=None, *, sweep=None, status=None):
     return df[list(COLUMNS)]
 
 
-def stored_status(root, sweep, run_ids=None) -> dict:
-    """``{run_id: status}`` of the runs stored for ``sweep`` (cheap: reads three columns).
+def stored_status(root, sweep, run_ids=None, *, set_aside=True) -> dict:
+    """``{run_id: status}`` of the runs stored for ``sweep`` (the skip check).
 
+    A run counts as stored only when its whole row reads back: every file is read and
+    verified as :func:`read_store` reads it, and a corrupt one is moved aside to
+    ``<root>/corrupt/`` (named in a :class:`StoreWarning`) so its runs are redone.
     With ``run_ids``, only those runs' per-run files (and the compact file) are read.
     """
     root = default_root(root)
@@ -303,7 +371,7 @@ def stored_status(root, sweep, run_ids=None) -> dict:
         return comp + runs
 
     read = _read_all(listing, lambda p: _read_file(p, columns=["run_id", "status", "utc"],
-                                                    missing_ok=True))
+                                                    missing_ok=True, set_aside=set_aside))
     latest = {}
     for _, t in read:
         if t is None:
@@ -436,9 +504,9 @@ def compact(root=None, *, sweep=None, min_tmp_age=3600.0, verbose=False) -> dict
     Under the sweep's lock, the merged rows (previous compact file + per-run files) are
     de-duplicated by ``run_id`` (latest ``utc`` wins) and written atomically; the new
     file is read back, and only the per-run files whose row is in it (and that did not
-    change since they were read) are removed. Corrupt/foreign files are left in place
-    (with a warning). Temporary files whose writers are provably dead
-    (:func:`dead_temp`) are removed.
+    change since they were read) are removed. Corrupt files are moved aside
+    (:func:`_set_aside`), foreign ones left in place (with a warning). Temporary files
+    whose writers are provably dead (:func:`dead_temp`) are removed.
 
     Returns
     -------
@@ -475,7 +543,7 @@ def _compact_one(root, name, d, verbose):
             st = p.stat()
         except OSError:
             continue
-        t = _read_file(p)
+        t = _read_file(p, set_aside=True)     # a corrupt compact file is kept, not overwritten
         if t is None:
             continue
         tables.append(t)

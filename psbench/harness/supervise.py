@@ -85,6 +85,9 @@ def watch_parent(parent_pid=None, *, interval=0.5) -> bool:
 def worker_setup(main_pid) -> None:
     """Set up a pool worker started by the ``psbench`` process ``main_pid``: follow it
     when it dies, and leave Ctrl-C to it (it stops the pool and reports)."""
+    from .._shared.warn import install
+
+    install()                        # warnings as one psbench line each, as in the main
     if main_pid is None or int(main_pid) == os.getpid():
         return
     if os.environ.get("SUBMITIT_LOCAL_JOB_ID") or os.environ.get("SLURM_JOB_ID"):

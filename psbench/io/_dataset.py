@@ -252,14 +252,26 @@ def read_dataset(path, *, calibration="auto", bits=None, unit_tol=1e-3):
     normals = None
     npy, mat = folder / "normals.npy", folder / "Normal_gt.mat"
     if npy.is_file():
-        normals = np.load(npy).astype(np.float32)
+        try:
+            normals = np.load(npy, allow_pickle=False).astype(np.float32)
+        except Exception as e:  # noqa: BLE001 - any damage: name the file, say what was expected
+            raise PsbenchError(f"{npy}: unreadable ({type(e).__name__}: {e}); expected a .npy "
+                               f"array of float normals ({H}, {W}, 3)") from None
         src = npy
     elif mat.is_file():
         import scipy.io as sio
-        d = sio.loadmat(mat)
+        try:
+            d = sio.loadmat(mat)
+        except Exception as e:  # noqa: BLE001 - a corrupt .mat raises many kinds of errors
+            raise PsbenchError(f"{mat}: unreadable ({type(e).__name__}: {e}); expected a MATLAB "
+                               f"file with key 'Normal_gt' ({H}, {W}, 3)") from None
         if "Normal_gt" not in d:
             raise PsbenchError(f"{mat}: no key 'Normal_gt' (keys: {[x for x in d if not x.startswith('__')]})")
-        normals = d["Normal_gt"].astype(np.float32)
+        try:
+            normals = np.asarray(d["Normal_gt"]).astype(np.float32)
+        except (TypeError, ValueError) as e:
+            raise PsbenchError(f"{mat}: 'Normal_gt' is not numeric ({e}); expected ({H}, {W}, 3) "
+                               "floats") from None
         src = mat
     if normals is not None and normals.shape != (H, W, 3):
         raise PsbenchError(f"{src}: normals have shape {normals.shape}, images are ({H}, {W}) -> expected ({H}, {W}, 3)")

@@ -24,10 +24,10 @@ from .._shared.deprecation import renamed_args
 from .._shared.files import atomic_write
 from ._common import cv2 as _cv2
 
-__all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map",
+__all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map", "ve_picture",
            "error_picture", "valid_picture", "weights_picture", "height_picture",
            "titled", "montage", "color_bar", "hstack", "object_box", "write_png", "text_size",
-           "font"]
+           "font", "nice_ticks"]
 
 NE_MAX = 20.0                      # deg: colour range of every NE map (as the report's panels)
 BACKGROUND = (255, 255, 255)       # outside the object in colour-mapped pictures
@@ -173,12 +173,29 @@ def titled(rgb, title, *, size=16, pad=6):
     return _draw(out, [(w / 2, pad, title, size, "ma")])
 
 
+def nice_ticks(vmin, vmax, n=5):
+    """About ``n`` round ticks (steps of 1, 2, 2.5 or 5 x 10^k) inside [vmin, vmax]."""
+    span = float(vmax) - float(vmin)
+    if not np.isfinite(span) or span <= 0:
+        return np.array([float(vmin)])
+    raw = span / max(n - 1, 1)
+    k = 10.0 ** np.floor(np.log10(raw))
+    step = next(m * k for m in (1, 2, 2.5, 5, 10) if m * k >= raw)
+    first = np.ceil(vmin / step - 1e-9) * step
+    ticks = np.arange(first, vmax + step * 1e-9, step)
+    return np.round(ticks / step) * step + 0.0           # + 0.0: no "-0"
+
+
 def color_bar(height, vmin, vmax, *, cmap="magma", label="", ticks=None, over=False, size=14):
     """A vertical colour bar ``height`` px tall with tick labels and a rotated-free label
     written above it; ``over`` marks the top as "and above"."""
     bar_w, margin = 18, 8
-    ticks = np.linspace(vmin, vmax, 5) if ticks is None else np.asarray(ticks, float)
-    labels = [f"{t:g}" + ("+" if over and t == ticks[-1] else "") for t in ticks]
+    ticks = nice_ticks(vmin, vmax) if ticks is None else np.asarray(ticks, float)
+    step = np.diff(ticks).min() if ticks.size > 1 else 0.0
+    # the fewest decimals that write every tick exactly (0.25 needs 2, 0.5 needs 1)
+    dec = next((d for d in range(7) if np.allclose(np.round(ticks, d), ticks, rtol=0,
+                                                    atol=step * 1e-6)), 3) if step > 0 else 3
+    labels = [f"{t:.{dec}f}" + ("+" if over and t == ticks[-1] else "") for t in ticks]
     lw = max(text_size(s, size)[0] for s in labels)
     top = text_size(label, size)[1] + 2 * margin if label else margin
     bh = max(height - top - margin, 20)
@@ -257,6 +274,20 @@ def error_picture(ne, object_mask=None, *, vmax=NE_MAX, title=None):
     return titled(pic, title) if title else pic
 
 
+def ve_picture(ve, object_mask=None, *, title=None):
+    """Validation-error map (:mod:`psbench.solve.validation`, relative to each pixel's
+    mean intensity) in magma over [0, the object's 99th percentile], with a colour bar;
+    undefined pixels white. Needs no ground truth."""
+    ve = np.asarray(ve, dtype=np.float32)
+    ok = np.isfinite(ve) if object_mask is None else (np.isfinite(ve) & object_mask)
+    vmax = float(np.percentile(ve[ok], 99)) if ok.any() else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    img = colorize(np.where(ok, ve, 0.0), 0.0, vmax, valid=ok)
+    bar = color_bar(img.shape[0], 0.0, vmax, label="ve (held-out |e| / mean I)", over=True)
+    pic = hstack(img, bar)
+    return titled(pic, title) if title else pic
+
+
 def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1200):
     """Each image in grey with its excluded observations coloured, in a grid.
 
@@ -312,9 +343,10 @@ def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1200
 
 
 def weights_picture(weights, object_mask=None, *, title="weights", vmax=None,
-                    max_width=1200):
+                    labels=None, max_width=1200):
     """(n, H, W) weights in viridis over [0, vmax] (default the 99th percentile over the
-    object) with a colour bar, one tile per image or ring."""
+    object) with a colour bar, one tile per image or ring; ``labels`` titles the tiles
+    (default 1..n, e.g. the rings' zeniths)."""
     w = np.asarray(weights, dtype=np.float32)
     m = np.ones(w.shape[1:], bool) if object_mask is None else np.asarray(object_mask, bool)
     if vmax is None:
@@ -323,7 +355,8 @@ def weights_picture(weights, object_mask=None, *, title="weights", vmax=None,
         vmax = vmax if vmax > 0 else 1.0
     box = object_box(m)
     tiles = [colorize(x[box], 0.0, vmax, cmap="viridis", valid=m[box]) for x in w]
-    grid = montage(tiles, labels=[f"{i + 1}" for i in range(len(tiles))], max_width=max_width)
+    labels = [f"{i + 1}" for i in range(len(tiles))] if labels is None else list(labels)
+    grid = montage(tiles, labels=labels, max_width=max_width)
     bar = color_bar(min(grid.shape[0], 360), 0.0, vmax, cmap="viridis", label=title)
     return hstack(grid, bar)
 

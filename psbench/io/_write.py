@@ -12,7 +12,7 @@ import numpy as np
 
 from .._shared.checks import PsbenchError, as_images, as_mask
 from .._shared.deprecation import renamed_args
-from .._shared.files import atomic_write
+from .._shared.files import HOST, atomic_write
 from ._common import PsbenchWarning, json_default
 from ._images import write_image
 from ._pictures import NORMAL_CODES, encode_normals
@@ -40,7 +40,10 @@ class atomic_dir:
         if t.exists() and not self.overwrite:
             raise PsbenchError(f"output folder {str(t)!r} already exists (pass overwrite=True to replace it)")
         t.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{t.name}.partial-", dir=t.parent))
+        # the writer's pid and host in the name: a later writer proves it dead (stale_partials)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{t.name}.partial-{os.getpid()}.{HOST}-",
+                                         dir=t.parent))
+        os.chmod(self.tmp, 0o777 & ~_umask())      # mkdtemp makes 0700: a normal folder
         return self.tmp
 
     def __exit__(self, exc_type, exc, tb):
@@ -56,6 +59,41 @@ class atomic_dir:
         else:
             os.replace(self.tmp, t)
         return False
+
+
+def _umask():
+    old = os.umask(0)
+    os.umask(old)
+    return old
+
+
+def stale_partials(folder, *, remove=True) -> list[Path]:
+    """Partial folders (``.<name>.partial-<pid>.<host>-*``) in ``folder`` whose writer,
+    a process on this host, no longer exists (killed with SIGKILL, a power cut);
+    removed when ``remove``. Returns their paths."""
+    out = []
+    folder = Path(folder)
+    if not folder.is_dir():
+        return out
+    for p in sorted(folder.glob(".*.partial-*")):
+        tag = p.name.rsplit(".partial-", 1)[-1].rsplit("-", 1)[0]      # pid.host
+        pid, _, host = tag.partition(".")
+        if not (p.is_dir() and pid.isdigit() and host == HOST) or _alive(int(pid)):
+            continue
+        if remove:
+            shutil.rmtree(p, ignore_errors=True)
+        out.append(p)
+    return out
+
+
+def _alive(pid) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
 
 
 def fmt_rows(a):
@@ -98,6 +136,13 @@ def write_dataset(path, images, lights, *, object_mask=None, normals=None, bits=
         raise PsbenchError(f"images must have shape (k, H, W), got {raw_int.shape}")
     imgs = raw_int if np.issubdtype(raw_int.dtype, np.unsignedinteger) else as_images(raw_int)
     k, H, W = imgs.shape
+    if not np.issubdtype(imgs.dtype, np.unsignedinteger):
+        lo, hi = float(np.nanmin(imgs)), float(np.nanmax(imgs))
+        if lo < 0.0 or hi > 1.0:       # written clipped: say so, the files lose those values
+            n = int(np.count_nonzero((imgs < 0.0) | (imgs > 1.0)))
+            warnings.warn(f"write_dataset: {n} image values outside [0, 1] (min {lo:g}, max "
+                          f"{hi:g}) are clipped to [0, 1] in {path}; scale the images first "
+                          "to keep them", PsbenchWarning, stacklevel=2)
     lay = lights if isinstance(lights, Layout) else _layout(np.asarray(lights, dtype=float))
     if lay.k != k:
         raise PsbenchError(f"lights has {lay.k} directions for {k} images")
@@ -319,6 +364,12 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
         save_pic("ne_map.png", P.ne_map(ne, m))
         save_pic("error.png", P.error_picture(ne, m, title=f"mean NE {mean:.2f} deg "
                                               f"(angle to the true normal)"))
+    ve = getattr(result, "ve", None) if imgs is not None else None
+    if ve is not None:  # ground-truth-free: written for real data as well
+        vm = np.where(m, ve.map, np.nan).astype(np.float32)
+        save_npy("ve.npy", vm)
+        save_pic("ve.png", P.ve_picture(vm, m, title=f"mean ve {ve.mean:.4f} (held-out "
+                                         f"error / pixel intensity)"))
     _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_image,
                  written)
     hgt = getattr(result, "height", None)
@@ -410,9 +461,12 @@ def _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_im
                 raise PsbenchError(f"true_outliers must have shape {a.shape}, got {to.shape}")
             save_pic("mask.png", P.valid_picture(base, a, m, truth=to))
         else:
+            zen = (getattr(result, "info", None) or {}).get("ring_zeniths")
+            rings = name == "ring_weights" and zen is not None and len(zen) == len(a)
             save_pic(f"{name}.png", P.weights_picture(
                 a, m, title="ring weight" if name == "ring_weights" else "weight",
-                vmax=1.0 if name == "ring_weights" else None))
+                vmax=1.0 if name == "ring_weights" else None,
+                labels=[f"{z:g}°" for z in zen] if rings else None))   # the ring's zenith
         if not per_image:
             continue
         (out / name).mkdir(exist_ok=True)

@@ -32,7 +32,7 @@ the sample's place inside its elevation bin moves from one azimuth to the next (
 lattice, :func:`directions`). For one azimuth the height field is resampled on a
 sheared grid whose columns are the rays' ground tracks (marching along the image
 axis closest to the azimuth, one whole pixel per step, linear across rays -- as
-:mod:`psbench.shadowmap`), so every ray of the azimuth is a column. For one
+:mod:`psbench.render.shadowmap`), so every ray of the azimuth is a column. For one
 elevation with rise T per step the first hit of the ray from origin rho is the first
 rho' > rho with ``g(rho') > g(rho) + bias``, ``g = h - T rho``, refined to the exact
 crossing between rho' - 1 and rho' (the profile is piecewise linear along a

@@ -1,4 +1,4 @@
-"""Compiled inner loop of :mod:`psbench._interreflect` (numba, optional).
+"""Compiled inner loop of :mod:`psbench.render._interreflect` (numba, optional).
 
 One call handles one chunk of the sheared working grid of one azimuth and every
 elevation of it: per working column (a ray track; columns run in parallel) and per

@@ -21,7 +21,7 @@ _NOTHING = np.float32(-3e38)
 def run(geo, specular, spec_e, occ, org, nrm, rec, Ec, Lc, wd, T, Ac, As):
     """Accumulate one working-grid chunk into Ac / As ((L nc, k), flat), in place.
 
-    ``geo`` is the :class:`psbench._interreflect._Geometry` (bias, weight, lobes);
+    ``geo`` is the :class:`psbench.render._interreflect._Geometry` (bias, weight, lobes);
     the other arguments are those of :func:`psbench._interreflect_kernel.chunk` with
     the emission already resampled onto the grid (``Ec`` (L, nc, k), ``Lc`` (L nc, k)).
     """

@@ -1,4 +1,4 @@
-"""Brute-force reference for :mod:`psbench._interreflect` (small scenes only).
+"""Brute-force reference for :mod:`psbench.render._interreflect` (small scenes only).
 
 An independent discretisation of the same one-bounce integral, written as a sum
 over surface *patches* instead of directions:
@@ -37,8 +37,8 @@ def reference(height, normals, emitted, *, object_mask=None, rho_d=1.0, specular
               sub=3, visibility=True, bias=1e-3, chunk=64):
     """One-bounce secondary light by a brute-force patch sum, (k, H, W) float64.
 
-    Parameters as :func:`psbench._interreflect.secondary` (``specular`` holds the
-    same :class:`~psbench._interreflect.Specular`); ``sub``: emitter sub-samples per
+    Parameters as :func:`psbench.render._interreflect.secondary` (``specular`` holds the
+    same :class:`~psbench.render._interreflect.Specular`); ``sub``: emitter sub-samples per
     pixel side; ``visibility``: test occlusion (see the module docstring).
     """
     h = np.asarray(height, np.float64)

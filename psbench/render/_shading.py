@@ -1,4 +1,4 @@
-"""Per-light shading for :func:`psbench.render.render`: Lambert, Phong, Torrance–Sparrow.
+"""Per-light shading for :func:`psbench.render.render`: Lambert, Phong, Torrance–Sparrow, GGX.
 
 One :class:`Shader` holds a surface's normals and the light layout and returns, light
 by light, the diffuse and specular planes (float32, (H, W)) in reused work buffers, so
@@ -25,8 +25,10 @@ class Shader:
     """Per-light shading of one surface; float32 (H, W) planes."""
 
     def __init__(self, height, object_mask, normals, lay, model, rho_d, rho_s, m, phong_m,
-                 positions, falloff, perspective, clamp=True, half_cos=False):
+                 positions, falloff, perspective, clamp=True, half_cos=False, roughness=0.3,
+                 f0=0.04):
         self.object_mask = object_mask
+        self.roughness, self.f0 = roughness, f0   # GGX (psbench.render._ggx)
         self.clamp = clamp
         #: keep cos(n, n_h) of the last light in ``self.cos_h`` (the reflection-cone
         #: highlight truth needs it for every model)
@@ -36,7 +38,7 @@ class Shader:
         self.lay = lay
         self.model = model
         self.rho_d, self.rho_s = rho_d, rho_s
-        self.m, self.phong_m = np.float32(m), np.float32(phong_m)
+        self.m, self.phong_m = np.asarray(m, np.float32), np.asarray(phong_m, np.float32)
         self.positions = positions
         self.falloff = falloff
         self.perspective = perspective
@@ -97,7 +99,7 @@ class Shader:
         lit = np.greater(sn, 0.0, out=self._lit)
         spec = None
         vx, vy, vz = self.view if self.view is not None else (0.0, 0.0, 1.0)
-        if self.model == "ts" or (self.want_half and self.model != "lambert"):
+        if self.model in ("ts", "ggx") or (self.want_half and self.model != "lambert"):
             hx, hy, hz = dx + vx, dy + vy, dz + vz
             hn = np.sqrt(hx * hx + hy * hy + hz * hz)
             if np.ndim(hn) == 0:  # constant bisector n_h
@@ -109,7 +111,12 @@ class Shader:
             if self.want_half:
                 np.copyto(self.cos_h, c)
         if self.model != "lambert":
-            if self.model == "ts":
+            if self.model == "ggx":
+                from ._ggx import ggx_specular
+                nv = self._dot(vx, vy, vz, np.empty_like(sn)) if self.view is not None else self.nz
+                vh = (dx * vx + dy * vy + dz * vz + 1.0) / hn   # v.h = (l.v + 1) / |l + v|
+                spec = ggx_specular(sn, nv, c, vh, self.roughness, self.f0, out=c)
+            elif self.model == "ts":
                 a = np.arccos(c, out=c)
                 a *= self.m
                 np.square(a, out=a)

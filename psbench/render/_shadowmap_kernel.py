@@ -1,4 +1,4 @@
-"""Compiled inner loops of :func:`psbench.shadowmap.shadow_map` (numba).
+"""Compiled inner loops of :func:`psbench.render.shadowmap.shadow_map` (numba).
 
 The two resampling steps of the horizon sweep stay with ``cv2.warpAffine``; these
 kernels replace the numpy passes between them. They perform the same float

@@ -1,7 +1,8 @@
 """Synthetic photometric-stereo images with ground truth (thesis Sections 2.3, 5.2, 5.3).
 
 :func:`render` shades a height-field surface under k lights with the Lambert
-(Eq. 2.12), Phong (Eq. 2.13) or Torrance–Sparrow (Eq. 2.14–2.15) model, puts in
+(Eq. 2.12), Phong (Eq. 2.13), Torrance–Sparrow (Eq. 2.14–2.15) or GGX microfacet
+(:mod:`psbench.render._ggx`) model, puts in
 self and cast shadows, adds Gaussian camera noise and optional quantisation,
 and returns a :class:`Scene` holding the image stack and the per-image ground
 truth (highlights, self shadows, cast shadows) that the quality factor needs.
@@ -31,12 +32,13 @@ from ._shading import (HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, Sha
                        _positive, highlight_plane, highlight_truth)
 from ._shading import highlight_rule as _highlight_rule
 from .shadowmap import point_shadow_map, shadow_map
+from . import _departures
 
 __all__ = ["render", "Scene", "MODELS", "SHADOWS", "HIGHLIGHT_RULES", "HIGHLIGHT_ANGLE",
            "HIGHLIGHT_FRACTION"]
 
 #: reflection models
-MODELS = ("lambert", "phong", "ts")
+MODELS = ("lambert", "phong", "ts", "ggx")
 #: accepted values of ``shadows``
 SHADOWS = (True, False, "all", "self", "none")
 #: quantisation bit depths accepted by ``quantize``
@@ -177,7 +179,10 @@ class Scene:
 def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
            rho_d=1.0, rho_s=1.0, m=2.0, quantize=None, highlight=None, highlight_angle=None,
            highlight_fraction=None, light_positions=None, falloff=False, perspective=None,
-           phong_m=20.0, shadow_bias=0.05, bounces=0, bounce_samples=24) -> Scene:
+           phong_m=20.0, shadow_bias=0.05, bounces=0, bounce_samples=24, roughness=0.3,
+           f0=0.04, albedo_texture=0.0, second_material=None, light_error=0.0,
+           power_error=0.0, light_distance=None, ambient=0.0, saturation=None,
+           gamma=1.0) -> Scene:
     """Render a photometric-stereo image stack with ground truth.
 
     Parameters
@@ -190,14 +195,20 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         Distant lights (:func:`psbench.layout`: ``"45x8"``, ``"30x8+60x8"``, ...);
         ``power`` (mu) scales every term of image i. Directions below the horizon
         (z < 0) are refused.
-    model : {"ts", "lambert", "phong"}
+    model : {"ts", "lambert", "phong", "ggx"}
         ``"lambert"``: I = mu rho_d (s.n) (Eq. 2.12).
         ``"phong"``: I = mu [rho_s max(r.v, 0)^phong_m + rho_d (s.n)],
         r = 2 (s.n) n - s (Eq. 2.13).
         ``"ts"`` (Torrance–Sparrow): I = mu [rho_s exp(-m^2 arccos(n_h.n)^2) + rho_d (s.n)],
         n_h = (v + s) / |v + s| (Eq. 2.14–2.15).
+        ``"ggx"``: I = mu [rho_s pi f_s(s, v) (s.n) + rho_d (s.n)], f_s the GGX
+        (Trowbridge–Reitz) microfacet BRDF F G1(s.n) G1(v.n) D(n_h.n) / (4 (s.n)(v.n))
+        with D = alpha^2 / (pi ((n_h.n)^2 (alpha^2 - 1) + 1)^2), Smith
+        G1(c) = 2c / (c + sqrt(alpha^2 + (1 - alpha^2) c^2)) and Schlick
+        F = F0 + (1 - F0)(1 - v.n_h)^5; alpha = ``roughness``, F0 = ``f0``
+        (:mod:`psbench.render._ggx`). A lobe no solver of psbench models.
         Both terms are 0 where s.n <= 0 (self shadow) and in cast shadow. Cast
-        shadows come from :func:`psbench.shadowmap.shadow_map` on
+        shadows come from :func:`psbench.render.shadowmap.shadow_map` on
         ``surface.height`` (``bias=shadow_bias``, 2x oversampled sweep).
     shadows : {True, "all", False, "self", "none"}
         True / ``"all"``: self and cast shadows. False / ``"self"``: no cast
@@ -218,9 +229,12 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         Seed of ``numpy.random.default_rng`` for the noise.
     rho_d, rho_s : float or (H, W) array_like
         Diffuse and specular albedo (>= 0).
-    m : float, default 2
+    m : float or (H, W) array_like, default 2
         Torrance–Sparrow roughness/shininess (> 0; Table 5.1 uses 2).
-    phong_m : float, default 20
+    roughness, f0 : float or (H, W) array_like, default 0.3, 0.04
+        GGX roughness alpha (> 0) and Fresnel reflectance at normal incidence (in [0, 1];
+        0.04 is a common dielectric); ``model="ggx"`` only.
+    phong_m : float or (H, W) array_like, default 20
         Phong exponent (> 0), separate from ``m`` because the Phong lobe needs a
         much larger exponent to be comparably narrow.
     quantize : int, optional
@@ -261,7 +275,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         per pixel from the surface point to the light. Default: ``lights.positions``
         if the layout has them, else distant lights. The returned layout's
         directions are those from the image centre (height 0) to each light.
-        Shading, self shadows and cast shadows (:func:`psbench.shadowmap.point_shadow_map`,
+        Shading, self shadows and cast shadows (:func:`psbench.render.shadowmap.point_shadow_map`,
         a perspective shadow map around the light's foot point) are per pixel.
     falloff : bool, default False
         Near lights only: multiply by (d0 / |L - p|)^2, d0 = |L| (distance to the
@@ -273,18 +287,29 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         simplification of Section 5.2.2.2: depth variation << distance).
         f must exceed the highest surface point. None: v = (0, 0, 1).
     shadow_bias : float, default 0.05
-        ``bias`` passed to :func:`psbench.shadowmap.shadow_map` /
-        :func:`~psbench.shadowmap.point_shadow_map` (pixel-height units; the
+        ``bias`` passed to :func:`psbench.render.shadowmap.shadow_map` /
+        :func:`~psbench.render.shadowmap.point_shadow_map` (pixel-height units; the
         rendered heights are exact, so it is small).
     bounces : {0, 1, 2}, default 0
         Interreflections: light reflected once (1) or twice (2) between surface
         points that see each other is added to the direct images (unchanged);
         ``Scene.secondary_fraction`` is its share of each clean pixel. Distant lights
         and the orthographic camera only. Model and equations:
-        :mod:`psbench._interreflect`.
+        :mod:`psbench.render._interreflect`.
     bounce_samples : int, default 24
         Direction sampling density of the interreflections: azimuths of the
         quadrature (x ~0.64 as many elevation bins); cost grows as its square.
+    albedo_texture, second_material, light_error, power_error, light_distance, ambient, saturation, gamma
+        Departures from the solvers' model (defaults: none), defined in
+        :mod:`psbench.render._departures`: ``albedo_texture`` c in [0, 1) multiplies rho_d by
+        a smooth seeded texture in [1 - c, 1]; ``second_material`` (a mapping of
+        ``rho_s``, ``m``, ``roughness``, ``f0``, ``phong_m``) on the right half of the
+        image; ``light_error`` (degrees) and ``power_error`` (fraction) render each
+        light rotated by that angle / with its power times 1 + U(-e, e) (seeded; the
+        scene's ``lights`` are the rendered ones); ``light_distance`` (image sides) puts
+        near point lights along the nominal directions; ``ambient`` adds that fraction
+        of the largest image range; ``saturation`` clips at that fraction of the stack
+        maximum; ``gamma`` applies the unlinearized response M (I / M)^(1/gamma).
 
     Returns
     -------
@@ -299,8 +324,10 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
                            "True, False, 'all', 'self', 'none'")
     cast = bool(shadows) if isinstance(shadows, (bool, np.bool_)) else shadows == "all"
     noise = _nonneg(noise, "noise")
-    m = _positive(m, "m")
-    phong_m = _positive(phong_m, "phong_m")
+    dep = _departures.check(albedo_texture=albedo_texture, second_material=second_material,
+                            light_error=light_error, power_error=power_error,
+                            light_distance=light_distance, ambient=ambient,
+                            saturation=saturation, gamma=gamma)
     rule, h_angle, h_fraction = _highlight_rule(highlight, highlight_angle, highlight_fraction)
     shadow_bias = _nonneg(shadow_bias, "shadow_bias")
     if quantize is not None:
@@ -317,8 +344,36 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     H, W = mask.shape
     rho_d = _albedo(rho_d, "rho_d", (H, W))
     rho_s = _albedo(rho_s, "rho_s", (H, W))
+    m = _lobe(m, "m", (H, W))
+    phong_m = _lobe(phong_m, "phong_m", (H, W))
+    roughness = _lobe(roughness, "roughness", (H, W))
+    f0 = _albedo(f0, "f0", (H, W))
+    if float(np.max(f0)) > 1:
+        raise PsbenchError(f"f0 must be in [0, 1], got a maximum of {float(np.max(f0)):g}")
     lay = _lights(lights)
     k = lay.k
+    if dep["light_distance"] is not None and (light_positions is not None
+                                              or lay.positions is not None):
+        raise PsbenchError("light_distance places near lights itself; do not also pass "
+                           "light_positions or a layout with positions")
+    if dep["light_error"] or dep["power_error"]:
+        d, pw = _departures.perturb_lights(lay.directions, lay.power, seed=seed,
+                                           light_error=dep["light_error"],
+                                           power_error=dep["power_error"])
+        lay = Layout(d, pw, lay.ring, np.degrees(np.arccos(np.clip(d[:, 2], -1, 1))),
+                     np.degrees(np.arctan2(d[:, 1], d[:, 0])) % 360.0, lay.name, lay.positions)
+    if dep["light_distance"] is not None:
+        light_positions = _departures.near_positions(lay.directions, width=W,
+                                                     light_distance=dep["light_distance"])
+    if dep["albedo_texture"]:
+        rho_d = rho_d * _departures.albedo_texture((H, W), contrast=dep["albedo_texture"],
+                                                   seed=seed)
+    if dep["second_material"]:
+        base = dict(rho_s=rho_s, m=m, roughness=roughness, f0=f0, phong_m=phong_m)
+        got = _departures.second_material((H, W), dep["second_material"], base)
+        rho_s, m, roughness = (got.get(n, base[n]) for n in ("rho_s", "m", "roughness"))
+        f0, phong_m = got.get("f0", f0), got.get("phong_m", phong_m)
+    camera = dict(ambient=dep["ambient"], saturation=dep["saturation"], gamma=dep["gamma"])
 
     pos = light_positions if light_positions is not None else lay.positions
     if pos is not None:
@@ -350,6 +405,9 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     if bounces:  # interreflections: the noiseless direct scene, then the secondary light
         from ._interreflect import add_bounces, check_bounces
         check_bounces(bounce_samples, pos, perspective, shadows)
+        if model == "ggx" or np.ndim(m) or np.ndim(phong_m):
+            raise PsbenchError("bounces > 0 needs model lambert, phong or ts with a scalar m "
+                               "and phong_m (no GGX, no second_material lobe)")
         scene = render(surface, lay, model=model, shadows=shadows, noise=0.0, seed=seed,
                        rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m,
                        highlight=highlight, highlight_angle=highlight_angle,
@@ -357,6 +415,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         scene = add_bounces(scene, height, mask, normals, bounces=int(bounces),
                             samples=int(bounce_samples), noise=noise, seed=seed, model=model,
                             rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m)
+        _departures.camera(scene.images, mask, scene.dynamic_range, **camera)
         if quantize is not None:
             _quantize(scene.images, mask, quantize)
             scene.quantize = quantize
@@ -365,7 +424,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     shader = Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
                     pos, bool(falloff), perspective,
                     clamp=not (isinstance(shadows, str) and shadows == "none"),
-                    half_cos=rule == "cone" and model != "lambert")
+                    half_cos=rule == "cone" and model != "lambert", roughness=roughness, f0=f0)
     cos_t = np.float32(np.cos(np.radians(h_angle))) if rule == "cone" else None
     occluded = None
     if cast:
@@ -421,6 +480,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
             if outside is not None:
                 z *= mask
             img += z
+    _departures.camera(images, mask, drange, **camera)
     if quantize is not None:
         _quantize(images, mask, quantize)
     return Scene(images, highlight, self_sh, cast_sh, surface, lay, model, float(noise), seed,
@@ -454,6 +514,19 @@ def _albedo(value, name, shape):
         raise PsbenchError(f"{name} must be a number or have shape {shape}, got {a.shape}")
     if not np.isfinite(a).all() or (a < 0).any():
         raise PsbenchError(f"{name} must be finite and >= 0 everywhere")
+    return a
+
+
+def _lobe(value, name, shape):
+    """A lobe parameter: a number > 0 or an (H, W) array of them."""
+    a = np.asarray(value, dtype=np.float32) if not isinstance(value, (bool, np.bool_)) \
+        else np.float32(np.nan)
+    if a.ndim == 0:
+        return np.float32(_positive(value, name))
+    if a.shape != shape:
+        raise PsbenchError(f"{name} must be a number or have shape {shape}, got {a.shape}")
+    if not np.isfinite(a).all() or (a <= 0).any():
+        raise PsbenchError(f"{name} must be finite and > 0 everywhere")
     return a
 
 

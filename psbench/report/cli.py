@@ -36,7 +36,7 @@ from . import pages as G
 from . import scales as S
 from . import tables as T
 from . import verdicts as V
-from .html import save_figure, write_atomic, write_page
+from ..io.html import save_figure, write_atomic, write_page
 
 __all__ = ["build", "build_all", "main"]
 
@@ -79,7 +79,7 @@ def _ok_runs(sel) -> dict:
 
 
 def build(results="results", out="reports", scale="full", panels=False, log=print,
-          experiments=None, force=False, _store=None) -> Path:
+          experiments=None, force=False, _store=None, _warned=False) -> Path:
     """Rebuild the ``scale`` report in the folder ``out``; returns ``out/index.html``.
 
     Raises :class:`psbench.report.scales.ReportRefused` before writing anything when
@@ -92,9 +92,9 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     messages = list(messages)
     names = [n for n in T.names() if experiments is None or n in experiments]
     sel = _selections(df, scale, names, results)
+    if not _warned:
+        _warn(messages)
     S.check(out, scale, _ok_runs(sel), results, force=force)
-    for m in messages:
-        log(f"warning: {m}")
     out.mkdir(parents=True, exist_ok=True)
     summaries, verdicts_by = [], {}
     for name in names:
@@ -125,6 +125,11 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "
         f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE)")
     return out / "index.html"
+
+
+def _warn(messages):
+    for m in messages:              # store warnings: diagnostics, on stderr
+        print(f"warning: {m}", file=sys.stderr, flush=True)
 
 
 def _size_text(summaries, scale) -> str:
@@ -174,6 +179,7 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
     full into ``out``, ci into ``out/ci``. Every target is checked before anything is
     written (:func:`psbench.report.scales.check`); returns the index paths."""
     store = T.load_store(results)
+    _warn(store[1])
     if scale == "auto":
         held = S.held(store[0], results)
         targets = [s for s in S.SCALES if held[s]] or ["full"]
@@ -191,10 +197,13 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
     # ci first, so that the full index can link to it
     order = sorted(targets, key=lambda s: s == "full")
     return [build(results, S.folder(out, s), s, panels=panels and s == with_panels, log=log,
-                  force=True, _store=store) for s in order]
+                  force=True, _store=store, _warned=True) for s in order]
 
 
 def main(argv=None) -> int:
+    from .._shared.warn import install
+
+    install()                           # warnings as one psbench line each
     ap = argparse.ArgumentParser(prog="psbench-report",
                                  description="Rebuild the thesis reports from the results "
                                              "store alone (never solves).",

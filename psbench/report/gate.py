@@ -33,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from . import tables as T
-from .html import write_atomic
+from ..io.html import write_atomic
 
 DEFAULT_TOLERANCES = {
     "ne": {"abs": 0.3},          # degrees

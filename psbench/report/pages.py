@@ -1,4 +1,4 @@
-"""The blocks of one experiment's page and of the index (see :mod:`psbench.report.html`).
+"""The blocks of one experiment's page and of the index (see :mod:`psbench.io.html`).
 
 An experiment page opens with its verdicts, then the figures, then the comparison with
 the thesis (psbench, thesis and difference in separate columns with units,
@@ -18,7 +18,7 @@ from . import present as P
 from . import tables as T
 from . import verdicts as V
 from .aggregates import data_name
-from .html import STATUSES, Link
+from ..io.html import STATUSES, Link
 
 __all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_totals"]
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .html import save_figure, write_page
+from ..io.html import save_figure, write_page
 
 SURFACES = ("semisphere", "sombrero", "penny", "mozart")
 MASKS = ("None", "xNL", "xNL-Sh", "Th", "Th-Hi-Re-Sh", "RA")

@@ -102,6 +102,15 @@ def existing(folder_) -> dict | None:
     return {"scale": m.group(1) if m else None, "with_data": with_data, "runs": runs}
 
 
+def _runs_by_experiment(folder_) -> dict:
+    """``{experiment: ok runs}`` of the report in ``folder_`` (from its manifest)."""
+    try:
+        exps = json.loads((Path(folder_) / MANIFEST).read_text()).get("experiments") or {}
+        return {n: int(e.get("runs", 0)) for n, e in exps.items()}
+    except (OSError, ValueError, TypeError, AttributeError):
+        return {}
+
+
 def _names(xs, k=4):
     xs = sorted(xs)
     return ", ".join(xs[:k]) + (f" and {len(xs) - k} more" if len(xs) > k else "")
@@ -133,6 +142,15 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"of {len(lost)} experiment(s) the store {results} lacks at that scale "
             f"({_names(lost)}); run `psbench +experiment=NAME scale={scale}` for them, use "
             f"--out another folder, or --force")
+    fewer = {n: (k, runs[n]) for n, k in _runs_by_experiment(folder_).items()
+             if n in runs and 0 < runs[n] < k}
+    if fewer:                    # e.g. a corrupt store file: never rebuild from fewer rows
+        n, (k, now) = sorted(fewer.items())[0]
+        raise ReportRefused(
+            f"psbench-report: refusing to overwrite {where}: the store {results} holds fewer "
+            f"runs than its pages report for {len(fewer)} experiment(s) ({n}: {now} of {k}; "
+            f"see the store warnings above, `psbench-results verify`); the old pages are "
+            f"kept: rerun the experiments to resume, or --force")
 
 
 def manifest(scale, results, summaries, generated) -> str:

@@ -7,7 +7,7 @@ residual magnitudes, and the fill of the missing observations. Same results as
 fill; every column is handled on its own, so any thread count gives the same result.
 
 Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
-layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
+layer, :mod:`psbench._shared.numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 

@@ -58,6 +58,11 @@ class Result:
     converged : bool, str or (H, W) bool array
         ``info["converged"]`` when the mask rounds or the method set it, else the
         method's verdict (``Fit.converged``).
+    ve : Validation
+        Ground-truth-free validation error (:mod:`psbench.solve.validation`): per-pixel
+        map ``ve.map`` (H, W) and ``ve.mean`` / ``ve.median``; the held-out errors of
+        the Lambertian fit over the observations the solve used (``weights``, else
+        ``valid``). Computed when first read.
     """
 
     normals: np.ndarray
@@ -75,6 +80,7 @@ class Result:
     info: dict = field(default_factory=dict)
     ring_weights: np.ndarray | None = None
     converged: Any = True
+    ve: Any = Lazy(None)
 
     @property
     def b(self) -> np.ndarray:
@@ -175,4 +181,11 @@ def finish(ctx, b, valid, weights, *, timer, name, method, iterations, info, wan
               iterations=int(iterations), thresholds=ctx.thresholds, info=info,
               ring_weights=ring_weights, converged=converged)
     kw.update(fields or {})
-    return (result_type or Result)(timings=timer.done(), **kw)
+    res = (result_type or Result)(timings=timer.done(), **kw)
+    if "ve" not in kw:
+        def ve():  # the held-out errors cost about one solve: only when read
+            from .validation import validate
+            return validate(images, ctx.S, res.weights if res.weights is not None else res.valid,
+                            object_mask=omask)
+        res.ve = ve
+    return res

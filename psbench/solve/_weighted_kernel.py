@@ -6,7 +6,7 @@ element depends on its own pixel only, so the result does not depend on the thre
 count.
 
 Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
-layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
+layer, :mod:`psbench._shared.numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 

@@ -240,7 +240,7 @@ class Options:
         SR: bounces of light predicted.
     sr_source : {"model", "images"}
         SR: emitters of the prediction: the predicted direct Lambert light, or the
-        observed images (see :func:`psbench._sr.predict`).
+        observed images (see :func:`psbench.solve.masks._sr.predict`).
     """
 
     max_iter: int = 10

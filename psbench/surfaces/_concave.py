@@ -5,7 +5,7 @@ object mask), so every point of the dent sees only other points of the dent: lig
 leaving through the opening never comes back (a ray that rises through the plane's
 level cannot meet the plane again). That makes their one-bounce interreflection
 checkable against a closed form (``cup``) or an occlusion-free brute-force sum
-(both), see :mod:`psbench._interreflect`. Registered as the surfaces ``cup`` and
+(both), see :mod:`psbench.render._interreflect`. Registered as the surfaces ``cup`` and
 ``vgroove`` (modules :mod:`psbench.surfaces.cup`, :mod:`psbench.surfaces.vgroove`).
 
 ``cup``

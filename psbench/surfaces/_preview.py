@@ -33,12 +33,14 @@ def write_preview(surface, path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     m = surface.object_mask
-    h = np.ma.masked_array(surface.height, mask=~m)
+    # heights in pixel units; in µm when the surface knows its pixel size (cartridge)
+    um = getattr(surface, "pixel_size", None)
+    h = np.ma.masked_array(surface.height * (um if um else 1.0), mask=~m)
     shade = np.where(m, _shade(surface), 0.0)
     fig = Figure(figsize=(7.2, 3.2), dpi=100)
     ax1, ax2 = fig.subplots(1, 2)
     im = ax1.imshow(h, cmap="viridis", interpolation="nearest")
-    fig.colorbar(im, ax=ax1, fraction=0.046, pad=0.03, label="height [px]")
+    fig.colorbar(im, ax=ax1, fraction=0.046, pad=0.03, label="height [µm]" if um else "height [px]")
     ax1.set_title(f"{surface.name}: height", fontsize=9)
     ax2.imshow(shade, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
     ax2.set_title(f"Lambert, max zenith {float(surface.zenith[m].max()):.1f}°",
@@ -61,6 +63,8 @@ def main(argv=None):
         description="Write preview PNGs (height colour map + Lambert shading) of psbench surfaces.")
     parser.add_argument("--out", default="surfaces", help="output directory (default: ./surfaces)")
     parser.add_argument("--size", type=int, default=256, help="grid size (default: 256)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace PNGs that already exist in --out (default: keep them)")
     parser.add_argument("--names", nargs="+", default=names, metavar="NAME",
                         help=f"surfaces to draw (default: all of {', '.join(names)})")
     args = parser.parse_args(argv)
@@ -71,6 +75,9 @@ def main(argv=None):
     except PsbenchError as exc:
         parser.error(str(exc))
     for name in args.names:
-        out = write_preview(make_surface(name, size=args.size), Path(args.out) / f"{name}.png")
-        print(out)
+        path = Path(args.out) / f"{name}.png"
+        if path.exists() and not args.overwrite:     # e.g. the committed previews
+            print(f"{path} exists, kept (--overwrite replaces it)")
+            continue
+        print(write_preview(make_surface(name, size=args.size), path))
     return 0

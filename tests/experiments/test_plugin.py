@@ -191,6 +191,6 @@ def test_every_builtin_experiment_keeps_the_contract():
         exp = load(name, results_dir="/r")
         assert exp["name"] == name and exp["scales"].keys() >= {"full", "ci"}
     assert gate.gated() == ("table2_1", "table5_3", "table5_4", "table5_5", "table5_6",
-                            "fig5_12", "chapter7", "robust")
+                            "fig5_12", "chapter7", "robust", "stress")
     data = load("table6_1", results_dir="/r")["grids"][0]["data"]
     assert "/r/simrig/penny" in data or "PSBENCH_SIMRIG" in __import__("os").environ

@@ -7,7 +7,7 @@ import pytest
 from psbench import PsbenchError
 from psbench.forensic import Cartridge, compare, make_cartridge
 from psbench.forensic.cartridge import MAX_PIXEL_SIZE
-from psbench.surfaces.cartridge import SURFACE
+from psbench.forensic.surface import SURFACE
 
 
 @pytest.fixture(scope="module")
@@ -95,4 +95,4 @@ def test_surface_spec_and_entry_point():
     eps = {ep.name: ep.value for ep in metadata.entry_points(group="psbench.surfaces")}
     if "cartridge" not in eps:
         pytest.skip("psbench is not installed with its entry points")
-    assert eps["cartridge"] == "psbench.surfaces.cartridge:SURFACE"
+    assert eps["cartridge"] == "psbench.forensic.surface:SURFACE"

@@ -26,7 +26,7 @@ def psbench(*args, cwd, timeout=240):
 
 def test_cartridge_min_size_is_the_generators():
     from psbench.forensic.cartridge import DEFAULT_PIXEL_SIZE, MAX_PIXEL_SIZE
-    from psbench.surfaces.cartridge import MIN_SIZE
+    from psbench.forensic.surface import MIN_SIZE
 
     assert MIN_SIZE == math.ceil(2048 * DEFAULT_PIXEL_SIZE / MAX_PIXEL_SIZE)
     ps.make_surface("cartridge", size=MIN_SIZE)  # accepted

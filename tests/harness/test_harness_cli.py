@@ -62,16 +62,18 @@ def test_sweep_six_rows_rerun_no_work_config_error_refused(tmp_path):
     common = ["zenith=30,45,60", "size=32", f"results_dir={res}", "hydra/launcher=basic"]
     r = psbench("-m", "mask=None,Th", *common, cwd=cwd)
     assert r.returncode == 0, r.stderr
-    df = _rows(res)
+    name = "mask=None,Th_zenith=30,45,60"          # the store folder, named from the sweep
+    df = _rows(res, name)
     assert len(df) == 6 and set(df["status"]) == {"ok"}
     assert sorted(df["lights"].unique()) == ["30x8", "45x8", "60x8"]
-    mt = {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()}
+    mt = {p: p.stat().st_mtime_ns for p in (res / "runs" / name).iterdir()}
     # again, plus NL (needs 4 images): a configuration error refuses the whole sweep
     # before any run, and nothing is stored
     r2 = psbench("-m", "mask=None,Th,NL", *common, cwd=cwd)
     assert r2.returncode == 2 and "NL needs exactly 4 images" in r2.stderr
     assert "Traceback" not in r2.stderr and r2.stdout.count("stored") == 0
-    assert {p: p.stat().st_mtime_ns for p in (res / "runs" / "adhoc").iterdir()} == mt
+    assert sorted(p.name for p in (res / "runs").iterdir()) == [name]
+    assert {p: p.stat().st_mtime_ns for p in (res / "runs" / name).iterdir()} == mt
     # the stored runs again: no work (a run failing while it runs is stored as failed and
     # the sweep goes on: tests/harness/test_run_faults.py)
     r3 = psbench("-m", "mask=None,Th", *common, cwd=cwd)
@@ -82,10 +84,11 @@ def test_sweep_six_rows_rerun_no_work_config_error_refused(tmp_path):
 
 def test_sigkill_midway_then_resume_exactly_nine(tmp_path):
     res = tmp_path / "res"
-    args = ["-m", "mask=Th,xNL,RA", "zenith=30,45,60", "size=48", f"results_dir={res}"]
+    args = ["-m", "mask=Th,xNL,RA", "zenith=30,45,60", "size=48", f"results_dir={res}",
+            "sweep=kill9"]
     proc = subprocess.Popen(CMD + args, cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
-    runs = res / "runs" / "adhoc"
+    runs = res / "runs" / "kill9"
     t0 = time.time()
     try:
         while time.time() - t0 < 90 and proc.poll() is None:
@@ -102,7 +105,7 @@ def test_sigkill_midway_then_resume_exactly_nine(tmp_path):
     at_kill = len(list(runs.glob("*.parquet")))
     r = psbench(*args, "hydra/launcher=basic", cwd=tmp_path)      # resume, in-process
     assert r.returncode == 0, r.stderr
-    df = _rows(res)
+    df = _rows(res, "kill9")
     assert len(df) == 9 and df["run_id"].is_unique and set(df["status"]) == {"ok"}
     assert len(list(runs.glob("*.parquet"))) == 9
     assert r.stdout.count("skipped (stored)") == at_kill
@@ -133,7 +136,7 @@ def test_sweep_over_method_options(tmp_path):
     args = ["-m", "size=32", "mask=Th-Hi", "options.max_iter=0,1", "hydra/launcher=basic"]
     r = psbench(*args, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    df = _rows(tmp_path / "results")
+    df = _rows(tmp_path / "results", sweep=None)   # a -m sweep has its own folder
     assert sorted(df["options"]) == ['{"max_iter": 0}', '{"max_iter": 1}']
     assert df["run_id"].is_unique
 

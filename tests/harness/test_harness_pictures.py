@@ -109,6 +109,12 @@ def test_single_run_pictures_out_and_outputs(tmp_path):
     assert lvl == "pictures" and d2 == tmp_path / "pics"
     assert (d2 / "normals.png").is_file() and not list(d2.glob("*.np[yz]"))
     assert not (d2 / "mesh.obj").exists()
+    # out=DIR on the stored run: the pictures written when it ran are copied there
+    r = psbench("size=48", "surface=spheres", "out=pics_again", cwd=tmp_path)
+    assert r.returncode == 0 and "skipped (stored)" in r.stdout, r.stderr
+    assert "pictures (stored run, copied from" in r.stdout, r.stdout
+    for f in PICTURES:
+        assert (tmp_path / "pics_again" / f).is_file(), f
     # a folder psbench did not write is refused before any work
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep me")
@@ -149,7 +155,7 @@ def test_sweep_progress_summary_and_sheet(tmp_path):
     r = psbench(*args, cwd=tmp_path, tmpdir=tmp)
     assert r.returncode == 0, r.stderr
     for k in (1, 2, 3):
-        assert f"sweep adhoc: {k}/3 done" in r.stderr, r.stderr
+        assert f"sweep mask=None,Th,Th-Hi-Re-Sh: {k}/3 done" in r.stderr, r.stderr
     assert "ETA" in r.stderr
     out = r.stdout
     assert "best first" in out
@@ -157,23 +163,29 @@ def test_sweep_progress_summary_and_sheet(tmp_path):
     ne = [float(ln.split()[2]) for ln in table]
     assert ne == sorted(ne) and len(ne) == 3
     assert {ln.split()[1] for ln in table} == {"None", "Th", "Th-Hi-Re-Sh"}
-    folder = tmp_path / "results" / "out" / "adhoc"
+    folder = tmp_path / "results" / "out" / "mask=None,Th,Th-Hi-Re-Sh"   # named from the sweep
     assert f"comparison sheet: {folder / 'comparison.html'}" in out
     text = _check_sheet(folder, 3)
-    assert text.count("mask=") == 0 and "Th-Hi-Re-Sh" in text
+    assert text.replace(folder.name, "").count("mask=") == 0 and "Th-Hi-Re-Sh" in text
     assert len([p for p in folder.iterdir() if p.is_dir()]) == 3
     assert list(tmp.iterdir()) == []                         # the progress file is gone
     r = psbench(*args, cwd=tmp_path, tmpdir=tmp)             # stored: no work, same summary
     assert r.returncode == 0 and r.stdout.count("skipped (stored)") == 3
     assert "3/3 done" in r.stderr and "best first" in r.stdout
+    sheet = (folder / "comparison.html").read_text()
+    r = psbench("-m", "mask=None,Th", "method=ps", "size=32", "hydra/launcher=basic",
+                cwd=tmp_path, tmpdir=tmp)                # another sweep: its own folder
+    assert r.returncode == 0, r.stderr
+    _check_sheet(tmp_path / "results" / "out" / "mask=None,Th", 2)
+    assert (folder / "comparison.html").read_text() == sheet     # the first sheet is kept
 
 
 def test_sweep_in_joblib_workers(tmp_path):
     r = psbench("-m", "method=ps,robust", "mask=None", "size=24", "hydra.launcher.n_jobs=2",
                 cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    assert "sweep adhoc: 2/2 done" in r.stderr and "best first" in r.stdout
-    _check_sheet(tmp_path / "results" / "out" / "adhoc", 2)
+    assert "sweep method=ps,robust: 2/2 done" in r.stderr and "best first" in r.stdout
+    _check_sheet(tmp_path / "results" / "out" / "method=ps,robust", 2)
 
 
 def test_sheet_without_ground_truth(tmp_path):

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -192,3 +193,62 @@ def test_store_of_the_previous_layout_is_read_and_moved(tmp_path):
     assert store.compact(tmp_path) == {"s": 2}
     assert not (tmp_path / "compact" / "s.parquet").exists()
     assert sorted(store.read_store(tmp_path)["run_id"]) == ["new", "old"]
+
+
+def _flip_page(path, column):
+    import pyarrow.parquet as pq
+
+    meta = pq.ParquetFile(path).metadata.row_group(0)
+    col = next(meta.column(i) for i in range(meta.num_columns)
+               if meta.column(i).path_in_schema == column)
+    b = bytearray(path.read_bytes())
+    b[col.data_page_offset + col.total_compressed_size - 1] ^= 0x10
+    path.write_bytes(bytes(b))
+
+
+@pytest.mark.parametrize("compacted", [False, True])
+def test_a_damaged_page_is_not_stored_and_is_set_aside(tmp_path, compacted):
+    """The skip check reads what read_store reads: a flipped byte in a column it does
+    not use still makes the run unstored, and the file is moved aside, not deleted."""
+    store.write_rows(tmp_path, [_row(f"a{i}", ne_mean=float(i), ie_l2=0.5) for i in range(5)])
+    if compacted:
+        store.compact(tmp_path)
+    p = store.compact_path(tmp_path, "s") if compacted else store.run_path(tmp_path, "s", "a3")
+    _flip_page(p, "ie_l2" if compacted else "ne_mean")
+    with pytest.warns(store.StoreWarning, match=f"{p.name}.*moved aside"):
+        st = store.stored_status(tmp_path, "s")
+    assert sorted(st) == ([] if compacted else ["a0", "a1", "a2", "a4"])
+    assert not p.exists()
+    kept = list((tmp_path / "corrupt" / "s").iterdir())
+    assert len(kept) == 1 and kept[0].name.startswith(p.name)
+    assert set(store.read_store(tmp_path)["run_id"]) == set(st)
+
+
+def test_resume_recomputes_a_damaged_run(tmp_path):
+    """Issue scenario: `psbench size=.. mask=Th outputs=none`, one byte flipped in the
+    ne_mean page, the same command again computes the run instead of skipping it."""
+    cmd = [str(Path(sys.executable).parent / "psbench"), "size=16", "mask=Th", "outputs=none",
+           "results_dir=res"]
+    env = {k: v for k, v in os.environ.items() if k != "PSBENCH_RESULTS"}
+    first = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=240)
+    assert first.returncode == 0, first.stderr
+    (p,) = (tmp_path / "res" / "runs" / "adhoc").glob("*.parquet")
+    _flip_page(p, "ne_mean")
+    again = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=240)
+    assert again.returncode == 0, again.stderr
+    assert "skipped" not in again.stdout and "stored" in again.stdout
+    assert "moved aside" in again.stderr and p.name in again.stderr
+    assert len(store.read_store(tmp_path / "res")) == 1
+
+
+def test_byte_flips_reduced():
+    """Reduced version of benchmarks/reliability_byteflip.py (40 + 40 flips, 738 rows)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    try:
+        import reliability_byteflip as bf
+    finally:
+        sys.path.pop(0)
+    for kind in ("per-run", "compact"):
+        phantom, changed, aside = bf.trial(kind, 8, 20, seed=3)
+        assert (phantom, changed) == (0, 0)
+        assert aside > 0

@@ -122,3 +122,11 @@ def test_colour_bar_and_montage_sizes():
     tiles = [np.full((30, 40, 3), i * 20, np.uint8) for i in range(7)]
     grid = P.montage(tiles, ncols=3, labels=list("abcdefg"))
     assert grid.shape[1] == 3 * 40 + 2 * 4 and grid.shape[0] > 3 * 30
+
+
+def test_colour_bar_ticks_are_round():
+    from psbench.io._pictures import nice_ticks
+
+    assert list(nice_ticks(0.0, 0.00318386)) == [0.0, 0.001, 0.002, 0.003]
+    assert list(nice_ticks(0.0, 1.0)) == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert all(str(t) != "-0.0" for t in nice_ticks(-180.0, 3.0))

@@ -383,7 +383,7 @@ def test_bad_lights_and_surface():
 
 
 def test_models_constant():
-    assert MODELS == ("lambert", "phong", "ts")
+    assert MODELS == ("lambert", "phong", "ts", "ggx")
 
 
 # ---------------------------------------------------------------- thesis-faithful truth / Di

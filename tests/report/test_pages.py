@@ -12,7 +12,7 @@ from test_report import _store, row, table5_3_rows
 from psbench.report import panels
 from psbench.report import tables as T
 from psbench.report.cli import build
-from psbench.report.html import Link, inline_html, to_html, to_markdown
+from psbench.io.html import Link, inline_html, to_html, to_markdown
 from psbench.report.present import fmt
 from psbench.report.verdicts import INCONCLUSIVE, NOT_SUPPORTED, SUPPORTED, Verdict
 

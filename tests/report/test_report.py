@@ -258,16 +258,18 @@ def test_empty_store_report_says_so(tmp_path):
         assert (out / f"{name}.md").is_file() and (out / f"{name}.html").is_file()
 
 
-def test_corrupt_and_foreign_files_are_named_and_skipped(tmp_path):
+def test_corrupt_and_foreign_files_are_named_and_skipped(tmp_path, capsys):
     root = _store(tmp_path, table5_3_rows(size=512)[:40])
     bad = root / "runs" / "table5_3" / "corrupt.parquet"
     bad.write_bytes(b"PAR1 this is not parquet")
     foreign = root / "runs" / "table5_3" / "foreign.parquet"
     pd.DataFrame({"a": [1, 2]}).to_parquet(foreign)
     msgs = []
+    capsys.readouterr()
     build(root, tmp_path / "rep", "full", log=msgs.append, experiments=("table5_3",))
-    text = "\n".join(msgs)
-    assert "corrupt.parquet" in text and "foreign.parquet" in text
+    cap = capsys.readouterr()                     # store warnings go to stderr
+    assert "corrupt.parquet" in cap.err and "foreign.parquet" in cap.err
+    assert "corrupt.parquet" not in cap.out + "\n".join(msgs)
     idx = (tmp_path / "rep" / "index.md").read_text()
     assert "corrupt.parquet" in idx and "40 rows" in idx
 

@@ -115,3 +115,17 @@ def test_held_scales_ignore_runs_shared_by_both_scales():
     assert S.held(df.iloc[0:0]) == {"full": [], "ci": []}
     assert S.folder("reports", "full").as_posix() == "reports"
     assert S.folder("reports", "ci").as_posix() == "reports/ci"
+
+
+def test_pages_are_not_rebuilt_from_fewer_rows(full_report, tmp_path, capsys):
+    """A store that lost rows (e.g. a corrupt compact file) never silently rebuilds the
+    pages with fewer runs: one line, exit 2, the old pages kept."""
+    rows = table5_3_rows(size=512)
+    fewer = _store(tmp_path / "fewer", rows[: len(rows) // 2] + _fig5_12_rows(512))
+    before = _snapshot(full_report)
+    capsys.readouterr()
+    assert main(["--results", str(fewer), "--out", str(full_report)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fewer runs than its pages report" in err[0]
+    assert f"table5_3: {len(rows) // 2} of {len(rows)}" in err[0]
+    assert _snapshot(full_report) == before

@@ -142,3 +142,15 @@ def test_background_plane_is_at_height_zero(name):
     s = ps.make_surface(name, size=96)
     assert s.object_mask[0, 0] and abs(float(s.height[0, 0])) < 1e-4
     assert np.allclose(s.normals[0, 0], (0, 0, 1))
+
+
+def test_preview_command_keeps_existing_pngs_unless_overwrite(tmp_path, capsys):
+    from psbench.surfaces._preview import main
+
+    png = tmp_path / "spheres.png"
+    png.write_bytes(b"committed")
+    assert main(["--out", str(tmp_path), "--size", "32", "--names", "spheres"]) == 0
+    assert png.read_bytes() == b"committed" and "--overwrite" in capsys.readouterr().out
+    assert main(["--out", str(tmp_path), "--size", "32", "--names", "spheres",
+                 "--overwrite"]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"

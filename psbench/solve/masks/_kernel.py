@@ -9,7 +9,7 @@ decision exactly at its threshold may differ from the matrix-product formulation
 output depends on its own pixel only: any thread count gives the same result.
 
 Pixels run on numba's threads (``prange``; psbench selects numba's fork-safe threading
-layer, :mod:`psbench._numba_setup`, so psbench's forked runs may use them).
+layer, :mod:`psbench._shared.numba_setup`, so psbench's forked runs may use them).
 """
 from __future__ import annotations
 

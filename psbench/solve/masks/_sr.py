@@ -10,7 +10,7 @@ traced light. psbench's SR step:
 1. from the current solution b = rho n: normals, albedo, and heights integrated
    from the normals (or given);
 2. predict the light every observation receives from other surface points by the
-   ray casting of :mod:`psbench._interreflect` (the same quadrature the renderer
+   ray casting of :mod:`psbench.render._interreflect` (the same quadrature the renderer
    uses), with the *predicted* direct Lambert images as emitters
    (``source="model"``: ``rho (s.n)`` where s.n > 0 and not cast-shadowed on the
    integrated heights) or the observed images (``source="images"``, Lambertian
@@ -131,7 +131,7 @@ def predict(b, lights, *, object_mask=None, images=None, valid=None, height=None
         Emitters: predicted direct Lambert light, or the observed images.
     bounces : {1, 2}
     samples : int
-        Azimuths of the ray-casting quadrature (see :mod:`psbench._interreflect`).
+        Azimuths of the ray-casting quadrature (see :mod:`psbench.render._interreflect`).
     size : int or None
         Largest side of the prediction grid (block means); None: full resolution.
     sh_bias : float

@@ -6,7 +6,7 @@ onto the rest of it, and proposes "a mask working similar to the ray tracing
 algorithm ... an iterative normal mask in unified PS". Each round SR
 
 1. integrates the current normals into heights and predicts every observation's
-   secondary light by the ray casting of the renderer (:func:`psbench._sr.predict`,
+   secondary light by the ray casting of the renderer (:func:`psbench.solve.masks._sr.predict`,
    Lambertian emitters and receivers, on a grid of at most ``sr_size`` pixels a side);
 2. masks the observations whose predicted secondary fraction ``f = secondary /
    observed`` exceeds ``t_sr`` (0.5: mostly secondary light, e.g. shadowed
@@ -23,7 +23,7 @@ Options (fields of every masked method's options, ``options.sr_*`` on the comman
 line): ``sr_samples``, ``sr_size``, ``sr_damp``, ``sr_correct``, ``sr_bounces``,
 ``sr_source`` (see :class:`psbench.solve.base.Options`); the engine stops once a round
 moves the normals by less than ``correct_tol`` degrees. Limits: the prediction is
-Lambertian (see :mod:`psbench._sr` for what that costs on specular images).
+Lambertian (see :mod:`psbench.solve.masks._sr` for what that costs on specular images).
 """
 from __future__ import annotations
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ...base import Fit
 from ...kernel import sym3_cofactors
+from ...._shared.warn import ConvergenceWarning
 
 __all__ = ["Pixels", "wls", "leverage", "masked_median", "weights_out"]
 
@@ -224,8 +225,9 @@ class Pixels:
             conv_out = converged
         if n_bad:
             msg = (f"{name}: {n_bad} of {self.n} object pixels did not converge"
-                   + (f" in n_iter={n_iter} iterations" if n_iter is not None else ""))
-            warnings.warn(msg, RuntimeWarning, stacklevel=3)
+                   + (f" in n_iter={n_iter} iterations (a larger options.n_iter lets "
+                      "them go on)" if n_iter is not None else ""))
+            warnings.warn(msg, ConvergenceWarning, stacklevel=3)
             info.setdefault("warnings", []).append(msg)
         it_out = (self.image(np.asarray(iterations, dtype=np.int32), fill=0)
                   if np.ndim(iterations) > 0 else int(iterations))

@@ -5,7 +5,7 @@ trimmed or reweighted 3x3 normal equations, the IRLS iterations with their per-p
 stopping rule -- in one pass over the pixel's observations, where the numpy versions made a chain of ``(n, k)``
 temporaries per step. Pixels are independent (no reduction across pixels), so blocks
 of pixels run on numba's threads (psbench selects numba's fork-safe threading layer,
-:mod:`psbench._numba_setup`; psbench's runs pin one thread) and the results do not
+:mod:`psbench._shared.numba_setup`; psbench's runs pin one thread) and the results do not
 depend on the thread count.
 
 The 3x3 normal equations are accumulated in float32 (as the numpy versions' matrix

@@ -6,7 +6,7 @@ Source: the Cauchy estimator of robust regression (Holland & Welsch, "Robust
 regression using iteratively reweighted least-squares", Commun. Stat. 6, 1977);
 in photometric stereo it is the robust estimator of Y. Quéau, T. Wu, F. Lauze,
 J.-D. Durou and D. Cremers, "A non-convex variational approach to photometric stereo
-under inaccurate lighting", CVPR 2017 (see :mod:`psbench.solve.methods._irls` for
+under inaccurate lighting", CVPR 2017 (see :mod:`psbench.solve.methods.robust._irls` for
 the loop and the scale).
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ C_DEFAULT = 2.385
 class CauchyOptions(MOptions):
     """Options of ``cauchy``: ``c`` (None = 2.385, 95 % Gaussian efficiency),
     ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
-    :class:`~psbench.solve.methods._irls.MOptions` --
+    :class:`~psbench.solve.methods.robust._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 

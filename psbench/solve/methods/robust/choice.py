@@ -55,7 +55,7 @@ fits noise); on Phong-rendered scenes the Gaussian lobe is an approximation (9.1
 against 7.0 degrees on Torrance-Sparrow scenes, still the lowest of all methods).
 
 Sources: Torrance-Sparrow fit: :mod:`psbench.solve.methods.tsfit`; rank trimming and
-concentration steps: :mod:`psbench.solve.methods.trim` (Rousseeuw & Van Driessen,
+concentration steps: :mod:`psbench.solve.methods.robust.trim` (Rousseeuw & Van Driessen,
 Data Min. Knowl. Disc. 12, 2006); truncated quadratic loss as the criterion between
 models: P. J. Rousseeuw and A. M. Leroy, "Robust Regression and Outlier Detection",
 Wiley, 1987. The combination is psbench's.
@@ -191,11 +191,27 @@ def robust(problem, options: RobustOptions):
     info.update(ts_fraction=float(use_t.mean()), sigma=sigma / px.scale,
                 rho_s=rho_s if not np.ndim(rho_s) else float(np.median(rho_s)),
                 m=m if not np.ndim(m) else float(np.median(m)))
-    msgs = [str(w.message) for w in caught if not str(w.message).startswith("tsfit:")]
-    for msg in msgs:
-        warnings.warn(msg, RuntimeWarning, stacklevel=2)
-    return px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
-                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
+    for w in caught:                    # tsfit's own count is robust's, given below
+        if not str(w.message).startswith("tsfit:"):
+            warnings.warn(str(w.message), w.category, stacklevel=2)
+    fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
+                 converged=conv, n_iter=options.n_iter, info=info, kn=True)
+    fit.fields["ve"] = _validation(px, keep, use_t, ts.fields.get("ve"))
+    return fit
+
+
+def _validation(px, keep, use_t, ve_t):
+    """The validation error of the chosen fit per pixel: the Torrance-Sparrow fit's
+    where it was chosen, the trimmed Lambertian fit's (held out over its kept
+    observations) elsewhere (:mod:`psbench.solve.validation`)."""
+    from ...validation import lambert_heldout, summarise, validation_map
+    I = px.Ik
+    vals = validation_map(lambert_heldout(I, px.S, keep), keep, I)
+    if ve_t is not None:
+        t = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
+        vals = np.where(use_t, t, vals)
+    idx = np.arange(px.n) if px.full else px.idx
+    return summarise(vals, idx, (px.H, px.W))
 
 
 METHOD = Method(name="robust", func=robust, options=RobustOptions,

@@ -8,7 +8,7 @@ parameter", Ann. Math. Statist. 35, 1964; IRLS as in Holland & Welsch (1977); in
 photometric stereo, M-estimators solved by reweighted least squares are the robust
 formulation of Y. Quéau, B. Durix, T. Wu, D. Cremers, F. Lauze and J.-D. Durou,
 "LED-based photometric stereo: modeling, calibration and numerical solution", JMIV 60,
-2018 (see :mod:`psbench.solve.methods._irls` for the loop and the scale).
+2018 (see :mod:`psbench.solve.methods.robust._irls` for the loop and the scale).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ C_DEFAULT = 1.345
 class HuberOptions(MOptions):
     """Options of ``huber``: ``c`` (None = 1.345, 95 % Gaussian efficiency),
     ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
-    :class:`~psbench.solve.methods._irls.MOptions` --
+    :class:`~psbench.solve.methods.robust._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 

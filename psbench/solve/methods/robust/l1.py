@@ -5,7 +5,7 @@ interpolates (at least) three observations and ignores how far the others lie, s
 minority of gross outliers (shadows, highlights) barely moves it. Solved by
 iteratively reweighted least squares with weights 1 / max(|r_i|, eps * scale),
 started from the masked least-squares solution; each pixel stops when its solution
-stops moving (per-pixel early stopping, :mod:`psbench.solve.methods._irls`).
+stops moving (per-pixel early stopping, :mod:`psbench.solve.methods.robust._irls`).
 Source: the L1 residual minimisation of robust photometric stereo as formulated by
 L. Wu, A. Ganesh, B. Shi, Y. Matsushita, Y. Wang and Y. Ma, "Robust photometric stereo
 via low-rank matrix completion and recovery", ACCV 2010, and compared in S. Ikehata,
@@ -30,7 +30,7 @@ __all__ = ["L1Options", "l1", "METHOD"]
 @dataclass
 class L1Options(IterOptions):
     """Options of ``l1`` (plus ``tol`` = 1e-4 of
-    :class:`~psbench.solve.methods._irls.IterOptions` and the mask-engine options).
+    :class:`~psbench.solve.methods.robust._irls.IterOptions` and the mask-engine options).
 
     Parameters
     ----------

@@ -14,7 +14,7 @@ gamma_i <- mu_i^2 + Sigma_ii, where mu_i = gamma_i w_i r_i is the posterior mean
 e_i and Sigma_ii = gamma_i - gamma_i^2 (w_i - w_i^2 s_i^T M^-1 s_i),
 M = sum_j w_j s_j s_j^T, its posterior variance -- all closed form per observation
 (O(k) per pixel, no k x k matrix), vectorised over pixels, with per-pixel early
-stopping (:mod:`psbench.solve.methods._irls`).
+stopping (:mod:`psbench.solve.methods.robust._irls`).
 
 Source: S. Ikehata, D. Wipf, Y. Matsushita and K. Aizawa, "Robust photometric stereo
 using sparse regression", CVPR 2012 (and TPAMI 36(9), 2014); SBL: M. E. Tipping,
@@ -38,7 +38,7 @@ __all__ = ["SBLOptions", "sbl", "METHOD"]
 @dataclass
 class SBLOptions(IterOptions):
     """Options of ``sbl`` (plus ``tol`` = 1e-4 of
-    :class:`~psbench.solve.methods._irls.IterOptions` and the mask-engine options).
+    :class:`~psbench.solve.methods.robust._irls.IterOptions` and the mask-engine options).
 
     Parameters
     ----------

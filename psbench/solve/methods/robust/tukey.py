@@ -8,7 +8,7 @@ steps). Source: A. E. Beaton and J. W. Tukey,
 "The fitting of power series, meaning polynomials, illustrated on band-spectroscopic
 data", Technometrics 16, 1974; IRLS as in Holland & Welsch (1977); M-estimation by
 reweighted least squares in photometric stereo as in Quéau et al., JMIV 60, 2018 (see
-:mod:`psbench.solve.methods.huber`).
+:mod:`psbench.solve.methods.robust.huber`).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ C_DEFAULT = 4.685
 class TukeyOptions(MOptions):
     """Options of ``tukey``: ``c`` (None = 4.685, 95 % Gaussian efficiency),
     ``start`` ("lts"), ``scale`` ("fixed"), ``n_iter`` (100), ``tol`` (1e-3) -- see
-    :class:`~psbench.solve.methods._irls.MOptions` --
+    :class:`~psbench.solve.methods.robust._irls.MOptions` --
     plus the mask-engine options of :class:`psbench.solve.base.Options`."""
 
 

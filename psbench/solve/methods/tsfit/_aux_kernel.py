@@ -26,7 +26,7 @@ _DX8 = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
 def dark_weights(tab, n, rd, rs, m, lobe, I, valid, margin, ratio, out):
     """out (k, P) bool: ``valid`` and not dark, where an observation is dark when the
     model predicts p > margin_i and I < ratio p and I < p - margin_i (float32, as
-    the numpy form of :func:`psbench.solve.methods._tsstart.put_back`). The model is
+    the numpy form of :func:`psbench.solve.methods.tsfit._start.put_back`). The model is
     Lambert + Torrance–Sparrow (``lobe``) or Lambert alone (rs, m unused)."""
     k, P = I.shape
     nb = (P + BLOCK - 1) // BLOCK

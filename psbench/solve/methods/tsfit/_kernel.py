@@ -1,7 +1,7 @@
 """Compiled per-pixel kernels of tsfit: the whole Levenberg–Marquardt fit of a pixel
 in registers.
 
-The model and the step are those documented in :mod:`psbench.solve.methods._lm`:
+The model and the step are those documented in :mod:`psbench.solve.methods.tsfit._lm`:
 per pixel the unknowns (two tangent angles of the normal, rho_d, and optionally
 rho_s and m), the normal equations J^T W J and J^T W r accumulated light by light,
 Marquardt damping scaled by the diagonal, an active set for unknowns at their

@@ -8,7 +8,7 @@ orthographic view v = (0, 0, 1), bisector h_i = (d_i + v) / |d_i + v|):
 
 Unknowns per pixel: the unit normal n (two tangent-plane angles), rho_d and,
 optionally, rho_s and m. Every pixel's problem is independent: the compiled kernels
-of :mod:`psbench.solve.methods._tsfit_kernel` fit each pixel in registers, in
+of :mod:`psbench.solve.methods.tsfit._kernel` fit each pixel in registers, in
 parallel over pixels. The n-gradient of f_i is mu_i (rho_d d_i + kappa B_i h_i) with
 kappa = 2 m^2 rho_s and B_i = E_i theta_i / sin(theta_i), E_i = exp(-m^2 theta_i^2).
 

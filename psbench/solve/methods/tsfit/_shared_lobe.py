@@ -2,7 +2,7 @@
 
 Variable projection: for given shared values every pixel is fitted on its own; the
 shared values then take Gauss–Newton steps on the total cost with the per-pixel
-unknowns projected out (:func:`psbench.solve.methods._lm.reduced`), each step
+unknowns projected out (:func:`psbench.solve.methods.tsfit._lm.reduced`), each step
 followed by a warm-started refit of the sample and accepted only if the total
 cost drops.
 """

@@ -19,6 +19,7 @@ from ...base import Fit, Options, check_choice, check_int, check_number
 from . import _lm, _grid as _tsgrid, _prop as _tsprop, _shared_lobe as _tsshared
 from ._start import (SIGMA_PIXELS, STARTS, count, lambert_pred, noise_sigma, put_back,
                      resolve_start, start_weights, take, unit)
+from ...._shared.warn import ConvergenceWarning
 
 __all__ = ["TsfitOptions", "tsfit", "METHOD"]
 
@@ -210,7 +211,7 @@ def tsfit(problem, options=None) -> Fit:
        differs from the mean normal of its 8 neighbours by more than 3 times the
        median of that difference restarts from that mean and keeps the refit if
        it lowers its own cost (nothing is smoothed; see
-       :mod:`psbench.solve.methods._tsprop`).
+       :mod:`psbench.solve.methods.tsfit._prop`).
 
     Accuracy: on noisy scenes rendered with this model the fit is close to the
     Cramér–Rao bound of a per-pixel estimator (measured within 3-20 % on the
@@ -363,8 +364,9 @@ def _tsfit(problem, opt, start_name):
     nconv = int((~conv).sum())
     if nconv:
         warnings.warn(f"tsfit: {nconv} of {P} object pixels did not converge within "
-                      f"lm_max_iter={opt.lm_max_iter}; they keep their best estimate",
-                      RuntimeWarning, stacklevel=2)
+                      f"lm_max_iter={opt.lm_max_iter} and keep their best estimate (a "
+                      "larger options.lm_max_iter lets them go on)",
+                      ConvergenceWarning, stacklevel=2)
 
     def plane(v, fill=0, dtype=np.float32):
         out = np.full(H * W, fill, dtype=dtype)
@@ -373,6 +375,8 @@ def _tsfit(problem, opt, start_name):
 
     b = np.zeros((H * W, 3), dtype=np.float32)
     b[idx] = (n * rd).T
+    ve = _validation(L, I, w, n, rd, rs, m, idx, (H, W))
+    clock.stage("validate")
     del I, valid  # the gathered copies: not needed for the output
     if full:
         wfull = w.astype(np.float32)
@@ -388,7 +392,19 @@ def _tsfit(problem, opt, start_name):
                 timings=clock.wall(), cpu_timings=clock.cpu())
     return Fit(b=b.reshape(H, W, 3), valid=(wfull > 0).reshape(k, H, W),
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
-               converged=plane(conv, True, bool), info=info)
+               converged=plane(conv, True, bool), info=info, fields={"ve": ve})
+
+
+def _validation(L, I, w, n, rd, rs, m, idx, shape):
+    """The validation error of the fitted model (:mod:`psbench.solve.validation`): the
+    model's held-out errors over the observations of positive weight."""
+    from ...validation import summarise, ts_heldout, validation_map
+    vals = np.empty(idx.size, dtype=np.float32)
+    for lo in range(0, idx.size, 1 << 16):
+        s = slice(lo, lo + (1 << 16))
+        e = ts_heldout(I[:, s], L.table, w[:, s], n[:, s], rd[s], rs[s], m[s])
+        vals[s] = validation_map(e, w[:, s], I[:, s])
+    return summarise(vals, idx, shape)
 
 
 class _Clock:

@@ -10,7 +10,7 @@ is float64 per pixel, outputs are float32. Every pixel is computed on its own (n
 cross-pixel reduction, fixed blocks), so results do not depend on the thread count.
 
 The surface-zenith sigmoid needs arccos and exp per pixel: both are inline
-(:mod:`psbench.solve.methods._wps_math`), so the pixel loops stay SIMD.
+(:mod:`psbench.solve.methods.wps._math`), so the pixel loops stay SIMD.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Inline arccos and the Eq. 4.15 sigmoid for the WPS kernel
-(:mod:`psbench.solve.methods._wps_kernel`).
+(:mod:`psbench.solve.methods.wps._kernel`).
 
 Calls into the C math library would stop the SIMD code of the kernel's pixel loops (and
 cost ~12x more at 512^2), so both are evaluated from their Taylor series (accurate to

@@ -1,7 +1,7 @@
 """The ring weights of WPS (Eqs. 4.9-4.16): sigmoid, surface factor, oracle, fusion.
 
 See :mod:`psbench.solve.methods.wps` for the decisions behind them. ``wps`` itself
-computes them per pixel in :mod:`psbench.solve.methods._wps_kernel`; ``sig`` and
+computes them per pixel in :mod:`psbench.solve.methods.wps._kernel`; ``sig`` and
 ``surface_factor`` are the same formulas on arrays, ``oracle_weights`` calls the kernel.
 """
 from __future__ import annotations

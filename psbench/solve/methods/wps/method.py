@@ -49,7 +49,7 @@ Decisions (where the thesis leaves room)
   engine on its own images and layout (``Problem.engine``: thresholds resolved for the
   ring's image count, ``weighted`` applied per ring). ``mask="None"`` without
   ``weighted`` solves every ring, measures its residual, weighs and fuses in one
-  compiled pass over the images (:mod:`psbench.solve.methods._wps_kernel`); the ring
+  compiled pass over the images (:mod:`psbench.solve.methods.wps._kernel`); the ring
   normals, albedo and residual are then computed when first read (the same compiled
   ring solves again, bit-identical), as the plain PS residual is.
 
@@ -187,7 +187,7 @@ def _outputs(R, N):
 
 
 def _constants(S, rings):
-    """The ring solves' constants of :func:`psbench.solve.methods._wps_kernel.plain_rings`:
+    """The ring solves' constants of :func:`psbench.solve.methods.wps._kernel.plain_rings`:
     order, start, P, F, G, count."""
     k, R = S.shape[0], len(rings)
     order = np.concatenate(rings).astype(np.int64)
@@ -206,7 +206,7 @@ def _constants(S, rings):
 
 def _plain(I2, S, rings, args):
     """Every ring's solve, residual, weights and the fusion in one pass over the images
-    (:func:`psbench.solve.methods._wps_kernel.plain_rings`); the ring outputs follow
+    (:func:`psbench.solve.methods.wps._kernel.plain_rings`); the ring outputs follow
     on demand (:class:`_RingOutputs`)."""
     N, R = I2.shape[1], len(rings)
     order, start, P, F, G, count = _constants(S, rings)
@@ -283,7 +283,7 @@ def wps(problem, options):
     (:func:`_plain`); the fused residual then follows from Pythagoras,
     ``|I_j - S_j b|^2 = |I_j - S_j b_j|^2 + (b_j - b)^T S_j^T S_j (b_j - b)``. With a
     mask the rings come from the mask engine and only the weights and the fusion are
-    compiled (:func:`psbench.solve.methods._wps_kernel.weigh_rings`).
+    compiled (:func:`psbench.solve.methods.wps._kernel.weigh_rings`).
     """
     images, lay, truth = problem.images, problem.lights, problem.truth_normals
     weight, binary = options.weight, bool(options.binary)

@@ -78,7 +78,7 @@ class Link:
 
 
 def write_atomic(path, data) -> Path:
-    """Write text or bytes to ``path`` atomically (:func:`psbench._fs.atomic_write`)."""
+    """Write text or bytes to ``path`` atomically (:func:`psbench._shared.files.atomic_write`)."""
     from psbench._shared.files import atomic_write
 
     return atomic_write(path, data, fsync=False)

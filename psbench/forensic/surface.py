@@ -1,4 +1,5 @@
-"""``cartridge``: the head of a fired cartridge case (Chapter 7), for forensic use.
+"""``cartridge``: the head of a fired cartridge case (Chapter 7), a surface that
+psbench.forensic registers (``psbench.surfaces`` entry point), as a plug-in would.
 
 The generator and its ground truth (regions, pose, heights in micrometres) live in
 :mod:`psbench.forensic.cartridge`; ``make_surface("cartridge", size=2048, gun=3, case=5)``
@@ -13,7 +14,7 @@ __all__ = ["SURFACE", "MIN_SIZE"]
 
 def cartridge(size=2048, **kwargs):
     """See :func:`psbench.forensic.cartridge.make_cartridge`."""
-    from ..forensic.cartridge import make_cartridge
+    from .cartridge import make_cartridge  # on use: listing the surfaces stays light
 
     return make_cartridge(size, **kwargs)
 

@@ -1,0 +1,33 @@
+"""psbench's warning categories and the one-line form the command-line tools print.
+
+Python shows a warning with its file, line number and source line, which tells a user
+of the ``psbench`` commands nothing; :func:`one_line` formats every warning as a single
+``psbench: warning: ...`` line instead, and :func:`install` makes it the format of a
+process (the console entry points and the pool workers call it). Library use keeps
+Python's format (callers filter by category, e.g. :class:`ConvergenceWarning`).
+"""
+from __future__ import annotations
+
+import warnings
+
+__all__ = ["ConvergenceWarning", "one_line", "install"]
+
+
+class ConvergenceWarning(RuntimeWarning):
+    """Some pixels of a solve did not converge within the iteration limit; the message
+    gives their count and the option that raises the limit."""
+
+
+def one_line(message, category, filename, lineno, line=None) -> str:
+    """``warnings.formatwarning`` replacement: one line, no source line."""
+    text = " ".join(str(message).split())
+    if category.__module__.split(".")[0] == "psbench" or "psbench" in str(filename):
+        if issubclass(category, DeprecationWarning):
+            return f"psbench: deprecated: {text}\n"
+        return f"psbench: warning: {text}\n"
+    return f"psbench: warning ({category.__name__} from {filename}:{lineno}): {text}\n"
+
+
+def install() -> None:
+    """Print the process's warnings as :func:`one_line` lines (idempotent)."""
+    warnings.formatwarning = one_line
