@@ -4,8 +4,9 @@ A sweep and its comparison sheet
 
 ``psbench -m`` runs one job per combination of the swept parameters, stores each row in
 the Parquet store, prints a summary table (best first) and writes a comparison sheet: one
-column per run with its input, ground truth, normals and NE map. Here three masks at two
-source zeniths, at 96 x 96 pixels, into a throwaway store (``PSBENCH_RESULTS``).
+column per run with its input, ground truth, normals and NE map. Here least squares and
+the mask combination ``Th-Hi-Re-Sh`` at two source zeniths, at 64 x 64 pixels, into a
+throwaway store (``PSBENCH_RESULTS``).
 """
 import os
 import subprocess
@@ -17,7 +18,7 @@ import matplotlib.pyplot as plt
 
 store = Path(tempfile.mkdtemp(prefix="psbench-sweep-"))
 psbench = str(Path(sys.executable).parent / "psbench")
-cmd = [psbench, "-m", "mask=None,Th,Th-Hi-Re-Sh", "zenith=30,60", "size=96",
+cmd = [psbench, "-m", "mask=None,Th-Hi-Re-Sh", "zenith=30,60", "size=64",
        "sweep=masks_by_zenith"]
 print("$", " ".join(["psbench"] + cmd[1:]))
 out = subprocess.run(cmd, env={**os.environ, "PSBENCH_RESULTS": str(store)}, cwd=store,
