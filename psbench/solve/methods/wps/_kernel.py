@@ -19,7 +19,6 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..._sym3 import inv_sym3
 from ._math import DEG, acos, sig
 
 __all__ = ["BLOCK", "KIND_NONE", "KIND_E", "KIND_ORACLE", "plain_rings", "ring_solutions",
@@ -230,26 +229,32 @@ def _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary):
                 else:
                     for q in range(n):
                         cr[q] = 0.0 if upd[q] != 0.0 else cr[q]
-        for m in range(tris.shape[0]):    # the truth inside the cone of three normals
+        # the truth inside the cone of three normals: t = x0 n_a + x1 n_b + x2 n_c, a
+        # general 3x3 system (columns: unit normals), not the symmetric normal-matrix
+        # solve of psbench.solve._sym3. Its guard only avoids dividing by 0: a thin cone
+        # is a valid candidate (the relative rule of _sym3 on the Gram matrix would refuse
+        # cones a few degrees wide and move the oracle at ~1 % of the pixels)
+        for m in range(tris.shape[0]):
             a, b, c = tris[m, 0], tris[m, 1], tris[m, 2]
             for q in range(n):
-                # t = x0 n_a + x1 n_b + x2 n_c from the Gram system G x = N^T t
-                ax, ay, az = NN[a, 0, q], NN[a, 1, q], NN[a, 2, q]
-                bx_, by_, bz_ = NN[b, 0, q], NN[b, 1, q], NN[b, 2, q]
-                cx, cy, cz = NN[c, 0, q], NN[c, 1, q], NN[c, 2, q]
-                g00 = ax * ax + ay * ay + az * az
-                g01 = ax * bx_ + ay * by_ + az * bz_
-                g02 = ax * cx + ay * cy + az * cz
-                g11 = bx_ * bx_ + by_ * by_ + bz_ * bz_
-                g12 = bx_ * cx + by_ * cy + bz_ * cz
-                g22 = cx * cx + cy * cy + cz * cz
-                r0 = ax * tx[q] + ay * ty[q] + az * tz[q]
-                r1 = bx_ * tx[q] + by_ * ty[q] + bz_ * tz[q]
-                r2 = cx * tx[q] + cy * ty[q] + cz * tz[q]
-                i00, i01, i02, i11, i12, i22, ok = inv_sym3(g00, g01, g02, g11, g12, g22)
-                x0 = i00 * r0 + i01 * r1 + i02 * r2
-                x1 = i01 * r0 + i11 * r1 + i12 * r2
-                x2 = i02 * r0 + i12 * r1 + i22 * r2
+                m00, m10, m20 = NN[a, 0, q], NN[a, 1, q], NN[a, 2, q]
+                m01, m11, m21 = NN[b, 0, q], NN[b, 1, q], NN[b, 2, q]
+                m02, m12, m22 = NN[c, 0, q], NN[c, 1, q], NN[c, 2, q]
+                k00 = m11 * m22 - m12 * m21
+                k01 = m02 * m21 - m01 * m22
+                k02 = m01 * m12 - m02 * m11
+                k10 = m12 * m20 - m10 * m22
+                k11 = m00 * m22 - m02 * m20
+                k12 = m02 * m10 - m00 * m12
+                k20 = m10 * m21 - m11 * m20
+                k21 = m01 * m20 - m00 * m21
+                k22 = m00 * m11 - m01 * m10
+                det = m00 * k00 + m10 * k01 + m20 * k02
+                ok = abs(det) > 1e-9
+                det = det if ok else 1.0
+                x0 = (k00 * tx[q] + k01 * ty[q] + k02 * tz[q]) / det
+                x1 = (k10 * tx[q] + k11 * ty[q] + k12 * tz[q]) / det
+                x2 = (k20 * tx[q] + k21 * ty[q] + k22 * tz[q]) / det
                 inside = ok and bc[q] < 1.0 and x0 >= 0.0 and x1 >= 0.0 and x2 >= 0.0
                 c1[q] = x0
                 c2[q] = x1
