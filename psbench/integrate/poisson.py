@@ -73,12 +73,12 @@ import numpy as np
 import scipy.fft as sfft
 
 from .._shared.checks import PsbenchError, as_mask, choice
-from .._shared.deprecation import renamed_args
+from .._shared.deprecation import renamed_args, renamed_names
 
-__all__ = ["integrate", "gradients", "METHODS", "NZ_MIN"]
+__all__ = ["integrate", "gradients", "INTEGRATORS", "NZ_MIN"]
 
-#: integration methods accepted by :func:`integrate`
-METHODS = ("poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral")
+#: integrators accepted by :func:`integrate` (formerly ``METHODS``)
+INTEGRATORS = ("poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral")
 #: lower clamp on n_z when converting normals to gradients
 NZ_MIN = 0.05
 
@@ -445,7 +445,7 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
         Heights in pixel units (z up towards the camera), 0 outside the mask.
     """
     n = _check_normals(normals)
-    choice(method, METHODS, "method")
+    choice(method, INTEGRATORS, "method")
     choice(datum, ("min", "mean"), "datum")
     if not (0 < _number(nz_min, "nz_min") <= 1):
         raise PsbenchError(f"nz_min must be in (0, 1], got {nz_min}")
@@ -495,3 +495,6 @@ def _integrate_box(n, m, method, nz_min, tol, maxiter):
         mm = np.ones(n.shape[:2], dtype=bool) if m is None else m
         z = _align_components(_poisson_sparse(gcol, grow, mm), mm)
     return z
+
+
+__getattr__ = renamed_names(globals(), {"METHODS": "INTEGRATORS"})
