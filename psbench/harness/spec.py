@@ -313,7 +313,10 @@ def _options(value, ctx):
     except PsbenchError as exc:
         raise PsbenchError(f"options: {exc}") from None
     default = cls()                 # a value equal to the default is the default run
-    return {k: v for k, v in value.items() if v != getattr(default, k)}
+    from ..solve.base import RENAMED_OPTIONS
+
+    value = {RENAMED_OPTIONS.get(k, k): v for k, v in value.items()}    # build() warned
+    return {k: v for k, v in sorted(value.items()) if v != getattr(default, k)}
 
 
 # ----------------------------------------------------------------------------- the spec
