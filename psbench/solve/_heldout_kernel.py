@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._sym3 import inv_sym3
+from ._sym3 import HELDOUT_RCOND, inv_sym3
 from .methods.tsfit._kernel import _acos, _expm, _light
 
 __all__ = ["lambert_errors", "ts_errors", "LEVER"]
@@ -61,7 +61,8 @@ def lambert_errors(I, S, w, out):
                     r0 += v * sx
                     r1 += v * sy
                     r2 += v * sz
-            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22)
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
+                                                              HELDOUT_RCOND)
             if not ok:
                 for i in range(k):
                     out[i, p] = np.nan
@@ -127,7 +128,8 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
                     a11 += wi * jy * jy
                     a12 += wi * jy * jz
                     a22 += wi * jz * jz
-            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22)
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
+                                                              HELDOUT_RCOND)
             for i in range(k):
                 wi = float(w[i, p])
                 if wi > 0.0:
