@@ -47,6 +47,9 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
     agg = T.aggregate(name, ok)
     cmp = T.compare(name, agg)
     verdicts = V.verdicts(name, agg, ok)
+    grid_runs = T.completeness(name, scale, rows_all, results)
+    if grid_runs and grid_runs[0] < grid_runs[1]:   # missing runs may change any verdict
+        verdicts = V.provisional(verdicts, *grid_runs)
     thesis = [v for v in verdicts if v.thesis]     # the totals count thesis claims only
     size = T.scale_size(name, scale, results)
     figs, errs = F.figures(name, agg, rows=ok)
@@ -56,7 +59,7 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
         save_figure(fig, Path(out) / "figures" / f"{stem}.png", dpi=F.DPI)
         rel.append((f"figures/{stem}.png", stem))
     blocks = G.experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, rel,
-                                 results=results)
+                                 results=results, grid_runs=grid_runs)
     write_page(out, name, blocks, T.title(name))
     write_atomic(Path(out) / "data" / f"{name}.csv", cmp.to_csv(index=False))
     shas = sorted(set(rows_all["git_sha"].dropna())) if "git_sha" in rows_all else []
@@ -66,6 +69,8 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
                    supported=sum(v.status == V.SUPPORTED for v in thesis),
                    not_supported=sum(v.status == V.NOT_SUPPORTED for v in thesis),
                    inconclusive=sum(v.status == V.INCONCLUSIVE for v in thesis),
+                   provisional=sum(v.status == V.PROVISIONAL for v in thesis),
+                   expected=grid_runs[1] if grid_runs else None,
                    own=len(verdicts) - len(thesis))
     return summary, thesis
 
@@ -79,7 +84,8 @@ def _ok_runs(sel) -> dict:
 
 
 def build(results="results", out="reports", scale="full", panels=False, log=print,
-          experiments=None, force=False, _store=None, _warned=False) -> Path:
+          experiments=None, force=False, _store=None, _warned=False,
+          _checked=False) -> Path:
     """Rebuild the ``scale`` report in the folder ``out``; returns ``out/index.html``.
 
     Raises :class:`psbench.report.scales.ReportRefused` before writing anything when
@@ -94,10 +100,13 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     sel = _selections(df, scale, names, results)
     if not _warned:
         _warn(messages)
-    S.check(out, scale, _ok_runs(sel), results, force=force)
+    if not _checked:
+        S.check(out, scale, _ok_runs(sel), results, force=force)
+    # pages holding runs this store lacks stay as they are (never replaced by NO DATA)
+    kept = {} if force else S.kept(out, _ok_runs(sel))
     out.mkdir(parents=True, exist_ok=True)
     summaries, verdicts_by = [], {}
-    for name in names:
+    for name in (n for n in names if n not in kept):
         s, vs = _build_experiment(name, sel[name], out, scale, messages, results)
         s["in_totals"] = G.in_totals(name)
         summaries.append(s)
@@ -114,16 +123,20 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         scale=scale, size_text=_size_text(summaries, scale),
         provenance=_provenance(df, summaries, results, now),
         summaries=summaries, verdicts_by=verdicts_by, messages=messages, empty=df.empty,
-        other_link=_other_link(out, scale), panels=bool(panel_files),
+        other_link=_other_link(out, scale), panels=bool(panel_files), kept=kept,
         deviations=[(n, getattr(T.experiment_module(n), "NOTES", "")) for n in names
                     if getattr(T.experiment_module(n), "NOTES", "")])
     write_page(out, "index", blocks, f"psbench report ({scale})")
-    write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now))
+    write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now,
+                                              kept))
     all_v = [v for s in summaries if s["in_totals"] for v in verdicts_by[s["experiment"]]]
     log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
         f"{sum(v.status == V.SUPPORTED for v in all_v)} SUPPORTED, "
         f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "
-        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE)")
+        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE"
+        + (f", {n_prov} PROVISIONAL" if (n_prov := sum(v.status == V.PROVISIONAL
+                                                      for v in all_v)) else "") + ")"
+        + (f"; kept the pages of {', '.join(kept)} (runs this store lacks)" if kept else ""))
     return out / "index.html"
 
 
@@ -197,7 +210,7 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
     # ci first, so that the full index can link to it
     order = sorted(targets, key=lambda s: s == "full")
     return [build(results, S.folder(out, s), s, panels=panels and s == with_panels, log=log,
-                  force=True, _store=store, _warned=True) for s in order]
+                  force=force, _store=store, _warned=True, _checked=True) for s in order]
 
 
 def main(argv=None) -> int:

@@ -131,6 +131,18 @@ def expected_run_ids(experiment: str, scale: str, results=None) -> frozenset | N
     return _run_ids(_cache_key(experiment, results), scale)
 
 
+def completeness(experiment: str, scale: str, rows: pd.DataFrame, results=None):
+    """``(present, expected)``: ok runs of ``rows`` in the current grid at ``scale`` and
+    the grid's size; None when it cannot be told (the grid cannot be expanded here, or no
+    row matches its run ids, e.g. paths expanded from another folder)."""
+    ids = expected_run_ids(experiment, scale, results)
+    if not ids or rows is None or rows.empty or "run_id" not in rows:
+        return None
+    ok = rows[rows["status"] == "ok"] if "status" in rows else rows
+    present = int(ok.loc[ok["run_id"].isin(ids), "run_id"].nunique())
+    return (present, len(ids)) if present else None
+
+
 @functools.lru_cache(maxsize=256)
 def _run_ids(key, scale):
     try:
