@@ -172,7 +172,7 @@ def _pixel_size(args, ds):
 
 def _reconstruct(args):
     from ..io import read_dataset, write_x3p
-    from ..io._pictures import titled, write_png
+    from ..io._pictures import text_px, titled, write_png
     from ..io._relief import height_picture
     from .recipe import reconstruct_heights
 
@@ -203,8 +203,9 @@ def _reconstruct(args):
     if args.creator:
         meta["creator"] = args.creator
     write_x3p(out, z, pixel_size=px, **meta)
-    write_png(png, titled(height_picture(z / px, m), f"{folder.name}: heights "
-                                                      f"(to scale, {px:g} um pixels)"))
+    rel = height_picture(z / px, m, pixel_size=px)
+    write_png(png, titled(rel, f"{folder.name}: heights (to scale, {px:g} um pixels)",
+                          size=text_px(max(rel.shape[:2]), least=16)))
     v = z[m]
     print(f"{out}: {W} x {H} heights at {px:g} um, {int(m.sum())} valid, range "
           f"{float(v.min()):.2f} to {float(v.max()):.2f} um | shaded view: {png}")
