@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import shutil
 
 import pandas as pd
 import pytest
@@ -32,13 +33,27 @@ def _fig5_12_rows(size, start=1000):
                                            for nz in (0.0, 0.1) for m in ("None", "Th"))]
 
 
-@pytest.fixture
-def full_report(tmp_path):
-    """A full-scale report (table5_3 and fig5_12 at 512^2) in tmp_path/reports."""
-    full = _store(tmp_path / "full", table5_3_rows(size=512) + _fig5_12_rows(512))
-    out = tmp_path / "reports"
-    assert main(["--results", str(full), "--out", str(out)]) == 0
+@pytest.fixture(scope="module")
+def _built_report(tmp_path_factory):
+    """Built once per module (a build takes seconds); each test gets its own copy."""
+    tmp = tmp_path_factory.mktemp("full_report")
+    full = _store(tmp / "full", table5_3_rows(size=512) + _fig5_12_rows(512))
+    out = tmp / "reports"
+    mp = pytest.MonkeyPatch()
+    mp.setattr(T, "names", lambda: list(NAMES))
+    try:
+        assert main(["--results", str(full), "--out", str(out)]) == 0
+    finally:
+        mp.undo()
     assert not (out / "ci").exists()                     # the store holds no ci-scale runs
+    return out
+
+
+@pytest.fixture
+def full_report(_built_report, tmp_path):
+    """A full-scale report (table5_3 and fig5_12 at 512^2) in tmp_path/reports."""
+    out = tmp_path / "reports"
+    shutil.copytree(_built_report, out)
     return out
 
 
