@@ -20,6 +20,7 @@ import functools
 import os
 import re
 import warnings
+from pathlib import Path
 
 import pandas as pd
 
@@ -74,7 +75,19 @@ def _cache_key(name, results):
     except (PsbenchError, OSError):
         path, mtime = None, None
     env = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("PSBENCH")))
-    return name, str(results), str(path), mtime, env
+    # a grid that never names the store resolves the same for every store: one cache entry
+    store = str(results) if _names_store(str(path), mtime) else "None"
+    return name, store, str(path), mtime, env
+
+
+@functools.lru_cache(maxsize=256)
+def _names_store(path, mtime) -> bool:
+    """Whether the grid file at ``path`` interpolates ``results_dir`` (``mtime``: cache
+    key only)."""
+    try:
+        return "results_dir" in Path(path).read_text()
+    except OSError:
+        return True
 
 
 @functools.lru_cache(maxsize=256)
