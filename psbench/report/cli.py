@@ -14,9 +14,12 @@ totals and key findings first) and ``report.json``.
 
 Scales: the full-scale report goes to ``<out>/``, the ci-scale one to ``<out>/ci/``. By
 default (``--scale auto``) every scale the store holds is reported; a report that holds
-data is never replaced by an emptier one (another scale, or pages that would say NO
-DATA): the command then stops with a one-line message and exit status 2 and changes
-nothing (``--force`` overrides; see :mod:`psbench.report.scales`). ``--panels``
+data is never replaced by an emptier one: the pages of experiments the store lacks at
+that scale are kept as they are (listed apart on the index), and a store with no run at
+that scale, fewer runs than a page reports, or a folder of another scale stops the
+command with a one-line message and exit status 2, changing nothing (``--force``
+overrides; see :mod:`psbench.report.scales`). A page whose grid is incomplete says so at
+the top (runs present / expected) and its verdicts are PROVISIONAL. ``--panels``
 additionally renders and solves ONE small scene set for the image panels (labelled as
 such; :mod:`psbench.report.panels`). All files are written atomically; corrupt or
 foreign Parquet files are named in a warning and skipped.
@@ -221,6 +224,7 @@ def main(argv=None) -> int:
                                  description="Rebuild the thesis reports from the results "
                                              "store alone (never solves).",
                                  epilog="Full-scale report in OUT/, ci-scale report in OUT/ci/; "
+                                        "pages of experiments the store lacks are kept, and "
                                         "a report holding data is never replaced by an "
                                         "emptier one (exit 2) unless --force.")
     ap.add_argument("--results", default=None,
@@ -232,7 +236,8 @@ def main(argv=None) -> int:
     ap.add_argument("--panels", action="store_true",
                     help="also render+solve one small scene set for the image panels")
     ap.add_argument("--force", action="store_true",
-                    help="replace a report even if it holds data the store lacks")
+                    help="replace a report even if it holds data the store lacks (its "
+                         "kept pages become NO DATA pages)")
     a = ap.parse_args(argv)
     from psbench.harness.store import default_root
 
