@@ -74,13 +74,13 @@ def test_killed_sweep_parent_leaves_no_worker(tmp_path):
 def test_killed_run_is_stored_failed_and_the_sweep_completes(tmp_path):
     """S3: a run process killed (as by the OOM killer): that run is stored as failed
     with the cause, every other run of the ``-m`` sweep completes."""
-    r = psbench("-m", "kind=noop", "seed=0,1,2", "args.die=false,true", cwd=tmp_path)
+    r = psbench("-m", "kind=noop", "seed=0,1", "args.die=false,true", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     _no_traceback(r.stderr)
     df = store.read_store(tmp_path / "results")
-    assert len(df) == 6 and df["run_id"].is_unique
+    assert len(df) == 4 and df["run_id"].is_unique
     died = df[df["status"] == "failed"]
-    assert len(died) == 3 and died["error"].str.contains("killed by SIGKILL").all()
+    assert len(died) == 2 and died["error"].str.contains("killed by SIGKILL").all()
     assert died["args"].str.contains('"die": true').all()
 
 
@@ -98,7 +98,7 @@ def test_killed_run_in_an_experiment_pool(tmp_path):
 def test_same_run_single_and_in_a_sweep_bit_identical(tmp_path):
     """D1: one BLAS thread everywhere: ``psbench`` and a ``psbench -m`` worker store
     the very same numbers for the same run."""
-    args = ["size=96", "lights=30x8+60x8", "weighted=true", "outputs=none"]
+    args = ["size=48", "lights=30x8+60x8", "weighted=true", "outputs=none"]
     a = psbench(*args, "mask=Th-Hi-Re-Sh", f"results_dir={tmp_path / 'a'}", cwd=tmp_path)
     assert a.returncode == 0, a.stderr
     b = psbench("-m", *args, "mask=Th-Hi-Re-Sh,Th", f"results_dir={tmp_path / 'b'}",
