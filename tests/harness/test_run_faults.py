@@ -56,6 +56,13 @@ def _busy_workers(pid, at_least=1):
     return busy if len(busy) >= at_least else []
 
 
+def _sigint_default():
+    """In the child: SIGINT's default action, even when the tests run with it ignored
+    (a background job of a non-interactive shell inherits SIGINT ignored, and an
+    ignored signal is discarded before psbench could see it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _until(cond, what, timeout=180.0):
     """Poll ``cond()`` until it returns something true; the timeout only bounds a hang."""
     t0 = time.time()
@@ -190,7 +197,7 @@ def test_ctrl_c_one_line_no_traceback_no_temp(tmp_path, args):
     env = _sleepy_experiment(tmp_path) if pool and "-m" not in args else _env()
     proc = subprocess.Popen(CMD + args + [f"results_dir={tmp_path}"], cwd=tmp_path,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                            text=True, start_new_session=True, preexec_fn=_sigint_default)
     try:
         # until every pool worker computes a run (a worker still starting up has Python's
         # own SIGINT handler for a moment), or the single run's process is forked
@@ -310,7 +317,7 @@ def test_sweep_survives_a_lost_worker(tmp_path):
     traceback, exactly one warning line, naming the lost job; runs stored before the
     loss are not computed again."""
     n = 6
-    proc = subprocess.Popen(CMD + ["-m", "kind=noop", f"seed=range({n})", "args.sleep=0.3",
+    proc = subprocess.Popen(CMD + ["-m", "kind=noop", f"seed=range({n})", "args.sleep=1.5",
                                    "results_dir=res", "sweep=lost", "hydra.launcher.n_jobs=2"],
                             cwd=tmp_path, env=_env(), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
