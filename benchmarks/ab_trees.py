@@ -1,7 +1,10 @@
-"""A/B timing of two psbench source trees in one session: a render, a solve and a small
-experiment (table2_1 at CI scale), each tree in fresh processes, taken in turn.
+"""A/B timing of two psbench source trees in one session: a render, the solves that end in
+the per-pixel 3x3 solve (the masked solve, WPS and its oracle, robust methods on the
+compiled and the numpy path, the held-out validation) and a small experiment (table2_1
+at CI scale), each tree in fresh processes, taken in turn.
 
     python benchmarks/ab_trees.py BEFORE_TREE [AFTER_TREE] [--runs 5] [--size 256]
+                                  [--no-experiment]
 
 Each child imports psbench from its tree (``python -c`` with the tree as working
 directory), warms up (numba cache, imports) and prints the medians of ``--runs`` timed
@@ -38,9 +41,16 @@ scene = ps.render(surf, lay, model="ts", noise=0.05, seed=0)
 r = timed(lambda: ps.render(surf, lay, model="ts", noise=0.05, seed=0))
 s = timed(lambda: ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh", object_mask=surf.object_mask))
 w = timed(lambda: ps.solve(scene.images, lay, method="wps", object_mask=surf.object_mask))
+wo = timed(lambda: ps.solve(scene.images, lay, method="wps", weight="oracle",
+                            truth_normals=surf.normals, object_mask=surf.object_mask))
+rob = {m: timed(lambda m=m: ps.solve(scene.images, lay, method=m, object_mask=surf.object_mask))
+       for m in ("trim", "huber", "sbl")}
 res = ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh", object_mask=surf.object_mask)
+from psbench.solve.validation import validate
+v = timed(lambda: validate(scene.images, lay, res.valid, object_mask=surf.object_mask))
 ne = ps.normal_error(res.normals, surf.normals, object_mask=surf.object_mask)
-print(json.dumps(dict(render=r, solve=s, wps=w, ne=float(ne), file=ps.__file__)))
+print(json.dumps(dict(render=r, solve=s, wps=w, wps_oracle=wo, validate=v, **rob, ne=float(ne),
+                      file=ps.__file__)))
 """
 EXPERIMENT = ("import sys; from psbench.harness.app import main; "
               "sys.argv = ['psbench', '+experiment=table2_1', 'scale=ci', 'jobs=1']; main()")
@@ -70,22 +80,27 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--no-experiment", action="store_true", help="skip the experiment timing")
     a = ap.parse_args(argv)
     trees = {"before": Path(a.before).resolve(), "after": Path(a.after).resolve()}
     for tree in trees.values():  # warm-up: numba caches, imports
         child(tree, 32, 1)
-        experiment(tree)
+        if not a.no_experiment:
+            experiment(tree)
     rows = {k: [] for k in trees}
+    load0 = os.getloadavg()[0]
     for _ in range(a.rounds):
         for k in ("before", "after"):
             row = child(trees[k], a.size, a.runs)
-            row["experiment"] = experiment(trees[k])
+            row["experiment"] = float("nan") if a.no_experiment else experiment(trees[k])
             rows[k].append(row)
     print(f"sombrero2 {a.size}^2, 30x8+60x8, TS, 5 % noise; medians of {a.runs} calls per "
-          f"process, {a.rounds} rounds; load average {os.getloadavg()[0]:.1f}")
+          f"process, {a.rounds} rounds; load average {load0:.1f} before, "
+          f"{os.getloadavg()[0]:.1f} after")
     print("| what | before s | after s | after / before (median of rounds) |")
     print("|---|---|---|---|")
-    for what in ("render", "solve", "wps", "experiment"):
+    whats = ["render", "solve", "wps", "wps_oracle", "trim", "huber", "sbl", "validate"]
+    for what in whats + ([] if a.no_experiment else ["experiment"]):
         b = [r[what] for r in rows["before"]]
         f = [r[what] for r in rows["after"]]
         ratio = statistics.median(x / y for x, y in zip(f, b))

@@ -70,7 +70,7 @@ def main(argv=None):
                 if meth == "poisson-sparse" and N > 1024:
                     continue
                 rep = 1 if meth == "poisson-sparse" else a.repeat
-                t, c = bench(lambda: integrate(n, object_mask=m, method=meth), rep)
+                t, c = bench(lambda: integrate(n, object_mask=m, integrator=meth), rep)
                 base = c if base is None else base
                 print(f"{N:>6} {'masked' if masked else 'full':>8} {meth:>15} {t:>9.4f} "
                       f"{c:>9.4f} {c / base:>7.2f}", flush=True)

@@ -16,9 +16,9 @@ when first read (a second compiled pass); that cost is printed below each table 
 not part of the solve. The machine's load average is printed before and after: on a shared
 machine absolute times are noisy, the ratios much less so.
 
-``--against REV`` also times the WPS of git revision REV (its ``wps.py``,
-``_wps_weights.py`` and, if it has one, ``_wps_kernel.py``) in the same rounds, for a
-before/after comparison. ``--masks`` adds the subset masks' timings (xNL, RA on 16
+``--against REV`` also times the WPS of git revision REV in the same rounds, for a
+before/after comparison: that revision's whole ``psbench`` package is imported under
+another name, so it runs with its own solver and kernels whatever its layout. ``--masks`` adds the subset masks' timings (xNL, RA on 16
 images, CJ on 45x4).
 
 Usage: python benchmarks/bench_wps.py [--size 512] [--rounds 15] [--threads 1,2]
@@ -27,7 +27,7 @@ Usage: python benchmarks/bench_wps.py [--size 512] [--rounds 15] [--threads 1,2]
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import importlib
 import os
 import subprocess
 import sys
@@ -42,42 +42,31 @@ LIMIT = 2.0
 
 
 def _load_revision(rev):
-    """Register the WPS method of git revision ``rev`` as ``wps@rev``; returns its name."""
-    from psbench import registry
-    from psbench.registry import Method
+    """Import the whole ``psbench`` package of git revision ``rev`` under another name
+    (``psbench_at_<rev>``): its WPS runs with its own solver, masks and kernels, whatever
+    the layout of that revision. Returns ``(solve, layout)`` of that package."""
+    import re
 
     root = Path(__file__).resolve().parents[1]
-    tag = "".join(c if c.isalnum() else "_" for c in rev)
+    pkg = "psbench_at_" + "".join(c if c.isalnum() else "_" for c in rev)
     tmp = Path(tempfile.mkdtemp(prefix="bench_wps_"))
-    names = {}
-    for mod in ("_wps_kernel", "_wps_weights", "wps"):
-        try:
-            src = subprocess.run(
-                ["git", "-C", str(root), "show", f"{rev}:psbench/solve/methods/{mod}.py"],
-                check=True, capture_output=True, text=True).stdout
-        except subprocess.CalledProcessError:
-            continue  # a revision before the kernel module existed
-        for other, new in names.items():
-            src = (src.replace(f"from .{other} import", f"from .{new} import")
-                   .replace(f"from . import {other} ", f"from . import {new} "))
-        new = f"{mod}_at_{tag}"
-        path = tmp / f"{new}.py"
-        path.write_text(src)
-        full = f"psbench.solve.methods.{new}"
-        spec = importlib.util.spec_from_file_location(full, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[full] = module
-        spec.loader.exec_module(module)
-        names[mod] = new
-    module = sys.modules[f"psbench.solve.methods.{names['wps']}"]
-    name = f"wps@{rev}"
-    registry.register("methods", Method(name, module.wps, options=module.WPSOptions,
-                                        masked=False, help=f"WPS at {rev}"), replace=True)
-    return name
+    tar = subprocess.run(["git", "-C", str(root), "archive", rev, "psbench"], check=True,
+                         capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=tar, check=True)
+    (tmp / "psbench").rename(tmp / pkg)
+    # absolute self-references and registry names follow the new package name (its
+    # entry-point groups then name no installed plug-in: it finds its own built-ins)
+    word = re.compile(r"\bpsbench\b(?!-)")
+    for f in (tmp / pkg).rglob("*.py"):
+        f.write_text(word.sub(pkg, f.read_text()))
+    sys.path.insert(0, str(tmp))
+    return (importlib.import_module(f"{pkg}.solve").solve,
+            importlib.import_module(f"{pkg}.lights").layout)
 
 
-def _cases(I, lay, truth, method):
-    from psbench.solve import solve
+def _cases(I, lay, truth, method="wps", solve=None):
+    if solve is None:
+        from psbench.solve import solve
 
     out = {}
     for w in WEIGHTS:
@@ -132,8 +121,9 @@ def main(argv=None):
     cases = {"PS": lambda: solve(I, lay)}
     cases.update({f"WPS {k}": f for k, f in _cases(I, lay, truth, "wps").items()})
     if a.against:
-        old = _load_revision(a.against)
-        cases.update({f"{old} {k}": f for k, f in _cases(I, lay, truth, old).items()})
+        old_solve, old_layout = _load_revision(a.against)
+        cases.update({f"wps@{a.against} {k}": f for k, f in
+                      _cases(I, old_layout("30x8+60x8"), truth, solve=old_solve).items()})
 
     print(f"WPS vs plain PS: {a.size}x{a.size}, 16 images (30x8+60x8), medians of {a.rounds} "
           f"interleaved rounds; numba {numba.__version__} ({numba.threading_layer()} "

@@ -2,7 +2,8 @@
 complete (N/N stored, exit 0) with one warning line naming the lost job.
 
 Usage: python benchmarks/reliability_sweep_kill.py [N] (default 50; kind=noop runs
-sleeping 0.3 s, two workers).
+sleeping 0.3 s, two workers). ``noop`` is the tests' self-test kind, a plug-in found
+through ``tests/plugins`` (put on ``PYTHONPATH`` here).
 """
 import os
 import subprocess
@@ -15,11 +16,15 @@ import psutil
 
 from psbench.harness import store
 
+PLUGINS = Path(__file__).resolve().parents[1] / "tests" / "plugins"
+
 
 def main(n=50):
     exe = Path(sys.executable).parent / "psbench"
     with tempfile.TemporaryDirectory() as d:
         env = {k: v for k, v in os.environ.items() if k != "PSBENCH_RESULTS"}
+        env["PYTHONPATH"] = os.pathsep.join([str(PLUGINS)] + [
+            p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
         proc = subprocess.Popen([str(exe), "-m", "kind=noop", f"seed=range({n})",
                                  "args.sleep=0.3", "results_dir=res", "sweep=kill",
                                  "hydra.launcher.n_jobs=2"], cwd=d, env=env,

@@ -1,17 +1,26 @@
-"""Plug-in registries: masks, methods, experiments and surfaces.
+"""Plug-in registries: masks, methods, experiments, surfaces, analyses, forensic recipes
+and run kinds.
 
 psbench grows by adding modules, not by editing lists. Each piece is a small frozen
-spec object (:class:`Mask`, :class:`Method`, :class:`Experiment`, :class:`SurfaceSpec`)
-published through a Python entry-point group:
+spec object (:class:`Mask`, :class:`Method`, :class:`Experiment`, :class:`SurfaceSpec`,
+:class:`Analysis`, :class:`Recipe`, :class:`RunKind`) published through a Python
+entry-point group:
 
-===================  =========================  ===========================================
+===================  =========================  ==============================================
 group                entry-point value          loaded object
-===================  =========================  ===========================================
+===================  =========================  ==============================================
 psbench.masks        ``pkg.module:MASK``        :class:`Mask`
 psbench.methods      ``pkg.module:METHOD``      :class:`Method`
 psbench.experiments  ``pkg.module``             a module (wrapped in :class:`Experiment`)
 psbench.surfaces     ``pkg.module:SURFACE``     :class:`SurfaceSpec`
-===================  =========================  ===========================================
+psbench.analyses     ``pkg.module:function``    a function (wrapped in :class:`Analysis`)
+                     or ``pkg.module:SPEC``     or an :class:`Analysis`
+psbench.recipes      ``pkg.module:RECIPE``      :class:`Recipe` (a forensic study method)
+psbench.run_kinds    ``pkg.module:RUN_KIND``    :class:`RunKind` (a ``kind=`` of the harness)
+===================  =========================  ==============================================
+
+A built-in module may define a tuple of specs under the attribute (``ANALYSES`` in
+:mod:`psbench.analysis.builtin`, ``RECIPES`` in :mod:`psbench.forensic.pipeline`).
 
 psbench's own pieces are declared in its ``pyproject.toml`` under the same groups, so a
 third-party package extends psbench exactly as psbench extends itself (as pytest and
@@ -35,9 +44,9 @@ from typing import Any, Callable
 
 from ._shared.checks import PsbenchError
 
-__all__ = ["Threshold", "Mask", "Method", "Experiment", "SurfaceSpec", "GROUPS", "masks",
-           "methods", "experiments", "surfaces", "get", "names", "register", "unregister",
-           "reload"]
+__all__ = ["Threshold", "Mask", "Method", "Experiment", "SurfaceSpec", "Analysis", "Recipe",
+           "RunKind", "GROUPS", "masks", "methods", "experiments", "surfaces", "analyses",
+           "recipes", "run_kinds", "get", "names", "register", "unregister", "reload"]
 
 
 # ----------------------------------------------------------------------------- specs
@@ -186,6 +195,68 @@ class Experiment:
             raise AttributeError(f"experiment {self.name!r} has no {item!r}") from None
 
 
+@dataclass(frozen=True)
+class Analysis:
+    """A ``kind=analysis`` computation: ``func(**kwargs)`` returning something JSON-able
+    (a DataFrame, dict, list or number), stored as the row's ``payload``.
+
+    The harness passes the run parameters ``func``'s signature names (``surface``,
+    ``lights``, ``seed``, ...; ``zeniths=[zenith]`` for a plural name) plus the run's
+    ``args``.
+    """
+
+    name: str
+    func: Callable
+    help: str = ""
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """A PS method of the forensic identification study (Chapter 7): a label and the
+    keyword arguments of :func:`psbench.solve` it stands for.
+
+    Attributes
+    ----------
+    name : str
+        The study's method label (``"Th-Hi-Re-Sh"``, ``"WPS"``, ...).
+    solve : dict
+        Keyword arguments of :func:`psbench.solve`; ``weights_um: True`` converts the
+        weighted masks' pixel lengths to the case's pixel size
+        (:func:`psbench.forensic.pipeline.solve_kwargs`).
+    help : str
+    """
+
+    name: str
+    solve: dict
+    help: str = ""
+
+
+@dataclass(frozen=True)
+class RunKind:
+    """A ``kind=`` of the harness besides ``solve``, ``cond`` and ``analysis``.
+
+    Attributes
+    ----------
+    name : str
+    func : callable
+        ``func(params, row)``: computes the run from its normalized parameters and
+        fills ``row``'s metric columns (an exception fails the run).
+    params : tuple of str, optional
+        The run parameters it reads (the others are left empty and out of its run id).
+        None: those of a ``solve`` run.
+    help : str
+    """
+
+    name: str
+    func: Callable
+    params: tuple[str, ...] | None = None
+    help: str = ""
+
+    def __post_init__(self):
+        if self.name in ("solve", "cond", "analysis"):
+            raise PsbenchError(f"RunKind {self.name!r}: a built-in kind cannot be replaced")
+
+
 # ----------------------------------------------------------------------------- groups
 #: group key -> (entry-point group, attribute that holds the spec, built-in packages or
 #: modules: an upper layer's piece is named here, not imported by the lower layer)
@@ -194,8 +265,12 @@ GROUPS = {
     "methods": ("psbench.methods", "METHOD", ("psbench.solve.methods",)),
     "experiments": ("psbench.experiments", None, ("psbench.experiments",)),
     "surfaces": ("psbench.surfaces", "SURFACE", ("psbench.surfaces", "psbench.forensic.surface")),
+    "analyses": ("psbench.analyses", "ANALYSES", ("psbench.analysis.builtin",)),
+    "recipes": ("psbench.recipes", "RECIPES", ("psbench.forensic.pipeline",)),
+    "run_kinds": ("psbench.run_kinds", "RUN_KIND", ()),
 }
-_TYPES = {"masks": Mask, "methods": Method, "experiments": Experiment, "surfaces": SurfaceSpec}
+_TYPES = {"masks": Mask, "methods": Method, "experiments": Experiment, "surfaces": SurfaceSpec,
+          "analyses": Analysis, "recipes": Recipe, "run_kinds": RunKind}
 
 _loaded: dict[str, dict[str, Any]] = {}
 _runtime: dict[str, dict[str, Any]] = {g: {} for g in GROUPS}
@@ -212,10 +287,23 @@ def _wrap(group, name, obj):
         grid = Path(obj.__file__).with_suffix(".yaml") if getattr(obj, "__file__", None) else None
         return Experiment(name=getattr(obj, "NAME", name), module=obj,
                           grid=grid if grid is not None and grid.is_file() else None)
+    if group == "analyses" and callable(obj) and not isinstance(obj, Analysis):
+        return Analysis(name=name, func=obj,
+                        help=(obj.__doc__ or "").strip().split("\n")[0])
     if not isinstance(obj, _TYPES[group]):
         raise PsbenchError(f"{GROUPS[group][0]} entry point {name!r} must be a "
                            f"{_TYPES[group].__name__}, got {type(obj).__name__}")
     return obj
+
+
+def _specs(group, name, obj):
+    """The specs an entry point or a built-in module's attribute holds: one spec, a tuple
+    of them, or (recipes) a dict label -> keyword arguments of :func:`psbench.solve`."""
+    if group == "recipes" and isinstance(obj, dict):
+        return [Recipe(label, dict(kw)) for label, kw in obj.items()]
+    if isinstance(obj, (tuple, list)):
+        return [_wrap(group, name, one) for one in obj]
+    return [_wrap(group, name, obj)]
 
 
 def _public_modules(pkg):
@@ -246,8 +334,8 @@ def _builtin(group):
             obj = mod if attr is None else getattr(mod, attr, None)
             if obj is None or (attr is None and not hasattr(mod, "aggregate")):
                 continue
-            spec = _wrap(group, mod.__name__.rsplit(".", 1)[-1], obj)
-            found[spec.name] = spec
+            for spec in _specs(group, mod.__name__.rsplit(".", 1)[-1], obj):
+                found[spec.name] = spec
     return found
 
 
@@ -256,17 +344,18 @@ def _load(group):
     specs = {}
     for ep in metadata.entry_points(group=ep_group):
         try:
-            spec = _wrap(group, ep.name, ep.load())
+            found = _specs(group, ep.name, ep.load())
         except Exception as exc:  # noqa: BLE001 - one broken plug-in must not break psbench
             warnings.warn(f"psbench: skipping {ep_group} entry point {ep.name!r} "
                           f"({ep.value}): {type(exc).__name__}: {exc}", RuntimeWarning,
                           stacklevel=3)
             continue
-        if spec.name in specs and specs[spec.name] is not spec:
-            warnings.warn(f"psbench: {ep_group} name {spec.name!r} is registered twice; "
-                          f"keeping the first", RuntimeWarning, stacklevel=3)
-            continue
-        specs[spec.name] = spec
+        for spec in found:
+            if spec.name in specs and specs[spec.name] != spec:
+                warnings.warn(f"psbench: {ep_group} name {spec.name!r} is registered twice; "
+                              f"keeping the first", RuntimeWarning, stacklevel=3)
+                continue
+            specs[spec.name] = spec
     # built-in modules are also found by convention: a source tree without installed
     # metadata works, and a new built-in module is one file (its entry-point line in
     # pyproject.toml declares it to other tools but is not needed to find it)
@@ -308,6 +397,21 @@ def surfaces() -> dict[str, SurfaceSpec]:
         for a in spec.aliases:
             out.setdefault(a, spec)
     return out
+
+
+def analyses() -> dict[str, Analysis]:
+    """Every registered ``kind=analysis`` computation, name -> :class:`Analysis`."""
+    return _all("analyses")
+
+
+def recipes() -> dict[str, Recipe]:
+    """Every registered forensic study method, label -> :class:`Recipe`."""
+    return _all("recipes")
+
+
+def run_kinds() -> dict[str, RunKind]:
+    """Every registered harness run kind besides the built-ins, name -> :class:`RunKind`."""
+    return _all("run_kinds")
 
 
 def names(group) -> list[str]:

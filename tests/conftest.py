@@ -1,7 +1,9 @@
 """Shared test fixtures for psbench."""
 from __future__ import annotations
 
+import importlib
 import os
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -10,6 +12,19 @@ import pytest
 matplotlib.use("Agg")
 
 REPO = Path(__file__).resolve().parents[1]
+
+# the tests' plug-ins (the harness self-test kind ``noop``: tests/plugins/psbench_selftest)
+# are found through their entry points by this process and by every process it starts
+# (the psbench command, joblib and submitit workers), as an installed plug-in would be
+PLUGINS = str(Path(__file__).resolve().parent / "plugins")
+if PLUGINS not in sys.path:
+    sys.path.insert(0, PLUGINS)
+    importlib.invalidate_caches()
+_pp = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+if PLUGINS not in _pp:
+    os.environ["PYTHONPATH"] = os.pathsep.join([PLUGINS] + _pp)
+if "psbench.registry" in sys.modules:       # loaded before this file: read entry points again
+    sys.modules["psbench.registry"].reload("run_kinds")
 
 
 def data_root() -> Path | None:

@@ -9,8 +9,6 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 PKG = REPO / "psbench"
-#: the one pair of packages that still import each other (see ARCHITECTURE.md)
-KNOWN_CIRCLE = {"calibrate", "io"}
 
 
 def _modules():
@@ -129,10 +127,7 @@ def test_no_circles_between_modules():
 
 
 def test_no_circles_between_packages():
-    circles = _circles(_package_graph())
-    assert [c for c in circles if c != KNOWN_CIRCLE] == []
-    # the exception is still needed (remove it from here and ARCHITECTURE.md when not)
-    assert KNOWN_CIRCLE in circles
+    assert _circles(_package_graph()) == []
 
 
 def test_every_package_has_a_layer():
@@ -146,7 +141,7 @@ def test_imports_go_down_the_layers():
     for a, targets in GRAPH.items():
         for b in targets:
             ta, tb = _top(a), _top(b)
-            if None in (ta, tb) or ta == tb or {ta, tb} == KNOWN_CIRCLE:
+            if None in (ta, tb) or ta == tb:
                 continue
             if RANK[tb] >= RANK[ta]:
                 upward.append(f"{a} -> {b}")

@@ -91,7 +91,7 @@ API = [
     ("render-quantize", lambda: ps.render(SURF, LAY, quantize=99), ["quantize", "1..16"]),
     ("render-shadows", lambda: ps.render(SURF, LAY, shadows="some"), ["shadows"]),
     ("render-seed", lambda: ps.render(SURF, LAY, seed="x"), ["seed"]),
-    ("integrate-method", lambda: ps.integrate(SURF.normals, method="magic"), ["method", "poisson"]),
+    ("integrate-method", lambda: ps.integrate(SURF.normals, integrator="magic"), ["integrator", "poisson"]),
     ("integrate-maxiter-str", lambda: ps.integrate(SURF.normals, maxiter="a"), ["maxiter"]),
     ("integrate-maxiter-0", lambda: ps.integrate(SURF.normals, maxiter=0), ["maxiter", ">= 1"]),
     ("integrate-maxiter-frac", lambda: ps.integrate(SURF.normals, maxiter=2.5), ["maxiter"]),

@@ -17,7 +17,8 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
          *sorted((ROOT / "docs" / "examples").glob("*.py"))]
 README = "\n".join(p.read_text() for p in PAGES)
 #: spelled like module paths in the README but not modules: entry-point groups, a file name
-NOT_MODULES = {"psbench.masks", "psbench.methods", "psbench.json"}
+NOT_MODULES = {"psbench.masks", "psbench.methods", "psbench.analyses", "psbench.recipes",
+               "psbench.run_kinds", "psbench.json"}
 #: the public API and layout of the design notes (psbench's contract)
 DESIGN = ["psbench.make_surface", "psbench.surface_from_height", "psbench.layout",
           "psbench.render", "psbench.solve", "psbench.normal_error", "psbench.intensity_error",

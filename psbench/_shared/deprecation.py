@@ -22,7 +22,7 @@ import inspect
 import sys
 import warnings
 
-__all__ = ["renamed_args", "warn_renamed", "moved_modules", "MOVED"]
+__all__ = ["renamed_args", "warn_renamed", "renamed_names", "moved_modules", "MOVED"]
 
 #: release in which the old forms go away
 REMOVED_IN = "0.3"
@@ -95,6 +95,24 @@ def renamed_args(*, positional=(), renamed=None):
         return wrapper
 
     return decorate
+
+
+def renamed_names(namespace, renamed):
+    """A module ``__getattr__`` for renamed module-level names.
+
+    ``namespace`` is the module's ``globals()``, ``renamed`` ``{old: new}``: the old
+    name gives the new name's value with a :class:`DeprecationWarning`. Use as
+    ``__getattr__ = renamed_names(globals(), {"METHODS": "RECIPES"})``.
+    """
+    module = namespace["__name__"]
+
+    def __getattr__(name):
+        if name in renamed:
+            warn_renamed(f"{module}.{name}", f"{module}.{renamed[name]}")
+            return namespace[renamed[name]]
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+
+    return __getattr__
 
 
 #: public module paths that moved -> where they are now (the old paths go in REMOVED_IN)

@@ -25,6 +25,7 @@ import numpy as np
 from ._common import KINDS  # noqa: F401  (public here)
 from ._common import _edges, _ne, _ps, _render, _ring, _seq, _sname, _surface, _surface_zenith
 from .._shared.checks import PsbenchError, choice
+from ..registry import Analysis
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
@@ -487,3 +488,17 @@ def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
     from ..forensic.study import run
 
     return run(part, label, size=size, seed=seed, study=study)
+
+
+# ----------------------------------------------------------------------------- registry
+def _spec(func):
+    return Analysis(name=func.__name__, func=func,
+                    help=(func.__doc__ or "").strip().split("\n")[0])
+
+
+#: psbench's own ``kind=analysis`` computations, registered like a plug-in's (the
+#: ``psbench.analyses`` group of :mod:`psbench.registry`)
+ANALYSES = tuple(_spec(f) for f in (
+    diffuse_counts, forensic, highlight_truth_options, ie_decomposition, mask_scores,
+    ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
+    table_5_5, table_5_6, wps_table))

@@ -57,30 +57,23 @@ pixel size, provenance) plus ``directions.npy``, ``positions.npy``, ``powers.npy
 :func:`save_calibration` and read by :func:`load_calibration` (both in
 :mod:`psbench.io`, re-exported here).
 
-Layout: ``_fit`` (the fitting maths, no I/O) and ``_calibration``
-(:class:`Calibration`, :func:`apply_calibration`) load with this package;
-:mod:`psbench.io` uses only them. The folder steps (``_steps``: ``step_*``,
-:func:`calibrate_folder`) and the command (``_cli``: :func:`main`) read and write
-folders through :mod:`psbench.io`, so they load on first use.
+Layout: ``_fit`` (the fitting maths, no I/O), ``_steps`` (the folder steps:
+``step_*``, :func:`calibrate_folder`) and ``_cli`` (the command: :func:`main`). The
+:class:`Calibration` record, :func:`apply_calibration`, the per-image corrections and the
+calibration folder live in :mod:`psbench.io` (``io._calibration``), which needs them to
+read a calibrated folder; this package, one layer up, measures and re-exports them.
 """
 from __future__ import annotations
 
-import importlib
-
-from ._calibration import Calibration, apply_calibration
-from ._fit import (apply_response, chart_means, fit_response, flat_field, grid_period,
-                   hot_pixels, light_directions_from_sphere, light_positions, light_powers,
-                   near_light_fields, pixel_size, polyfit2d, polyval2d, remove_hot_pixels,
+from ..io._calibration import (Calibration, apply_calibration, apply_response, hot_pixels,
+                               load_calibration, near_light_fields, remove_hot_pixels,
+                               save_calibration)
+from ._cli import main
+from ._fit import (chart_means, fit_response, flat_field, grid_period, light_directions_from_sphere,
+                   light_positions, light_powers, pixel_size, polyfit2d, polyval2d,
                    sphere_geometry)
-
-# names that need psbench.io (which itself imports _fit and _calibration): loaded on use
-_LAZY = {
-    "save_calibration": "psbench.io", "load_calibration": "psbench.io",
-    "calibrate_folder": "psbench.calibrate._steps", "step_dark": "psbench.calibrate._steps",
-    "step_response": "psbench.calibrate._steps", "step_directions": "psbench.calibrate._steps",
-    "step_white": "psbench.calibrate._steps", "step_pixelsize": "psbench.calibrate._steps",
-    "main": "psbench.calibrate._cli",
-}
+from ._steps import (calibrate_folder, step_dark, step_directions, step_pixelsize, step_response,
+                     step_white)
 
 __all__ = ["Calibration", "sphere_geometry", "light_directions_from_sphere", "light_positions",
            "hot_pixels", "remove_hot_pixels", "chart_means", "fit_response", "apply_response",
@@ -88,15 +81,3 @@ __all__ = ["Calibration", "sphere_geometry", "light_directions_from_sphere", "li
            "pixel_size", "grid_period", "apply_calibration", "save_calibration",
            "load_calibration", "calibrate_folder", "step_dark", "step_response",
            "step_directions", "step_white", "step_pixelsize", "main"]
-
-
-def __getattr__(name):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'psbench.calibrate' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))

@@ -1,8 +1,10 @@
 """Calibration maths (thesis Chapter 6): pure functions on numpy arrays, no file I/O.
 
-Every step of :mod:`psbench.calibrate` is one function here (see the package
-docstring for the methods); :mod:`psbench.calibrate._calibration` holds the
-:class:`Calibration` they fill and :func:`apply_calibration`.
+Every measuring step of :mod:`psbench.calibrate` is one function here (see the package
+docstring for the methods). The :class:`Calibration` they fill, :func:`apply_calibration`
+and the corrections it applies per image (hot pixels, response, near-light fields) are
+in :mod:`psbench.io._calibration`, below this package, because reading a calibrated
+folder applies them; they are re-exported here.
 """
 from __future__ import annotations
 
@@ -12,73 +14,12 @@ import numpy as np
 
 from .._shared.checks import PsbenchError, as_images
 from .._shared.deprecation import renamed_args
+from ..io._calibration import apply_response, hot_pixels, near_light_fields, remove_hot_pixels
 
 __all__ = ["hot_pixels", "remove_hot_pixels", "chart_means", "fit_response", "apply_response",
            "polyfit2d", "polyval2d", "flat_field", "sphere_geometry",
            "light_directions_from_sphere", "light_positions", "near_light_fields",
            "light_powers", "grid_period", "pixel_size"]
-
-
-# --------------------------------------------------------------------------- dark
-@renamed_args(positional=("threshold",))
-def hot_pixels(dark, *, threshold=None):
-    """Hot pixels of a dark frame.
-
-    Parameters
-    ----------
-    dark : (H, W) float
-        Dark frame (all lights off), in [0, 1].
-    threshold : float, optional
-        Absolute threshold. Default: ``median + 8 * sigma`` of the frame with sigma
-        estimated from the 1st-99th percentile range of the pixels (robust to the
-        hot pixels themselves), and at least 0.05 above the median.
-
-    Returns
-    -------
-    hot : (H, W) bool
-    threshold : float
-    """
-    d = np.asarray(dark, dtype=np.float32)
-    if d.ndim != 2:
-        raise PsbenchError(f"dark must have shape (H, W), got {d.shape}")
-    if threshold is None:
-        med = float(np.median(d))
-        lo, hi = np.percentile(d, [1, 99])
-        core = d[(d >= lo) & (d <= hi)]
-        sigma = float(core.std()) if core.size else 0.0
-        threshold = med + max(8.0 * sigma, 0.05)
-    return d > threshold, float(threshold)
-
-
-@renamed_args(positional=("ksize",))
-def remove_hot_pixels(images, hot, *, ksize=3):
-    """Replace ``hot`` pixels in every image by the median of their neighbourhood.
-
-    Parameters
-    ----------
-    images : (k, H, W) float32
-    hot : (H, W) bool
-    ksize : {3, 5}
-        ``cv2.medianBlur`` aperture (float32 images allow 3 and 5).
-
-    Returns
-    -------
-    (k, H, W) float32 (a copy)
-    """
-    import cv2
-    imgs = as_images(images)
-    hot = np.asarray(hot, bool)
-    if hot.shape != imgs.shape[1:]:
-        raise PsbenchError(f"hot must have shape {imgs.shape[1:]}, got {hot.shape}")
-    if ksize not in (3, 5):
-        raise PsbenchError(f"ksize must be 3 or 5, got {ksize}")
-    out = imgs.copy()
-    if not hot.any():
-        return out
-    for i in range(out.shape[0]):
-        med = cv2.medianBlur(imgs[i], ksize)
-        out[i][hot] = med[hot]
-    return out
 
 
 # --------------------------------------------------------------------------- response
@@ -103,12 +44,6 @@ def chart_means(image, boxes, *, inner=0.6):
             raise PsbenchError(f"chart box {(r0, r1, c0, c1)} is empty inside the image {img.shape}")
         out.append(patch.mean())
     return np.array(out)
-
-
-def _monotone_lut(coeffs, n=4097):
-    grid = np.linspace(0.0, 1.0, n)
-    v = np.maximum.accumulate(np.polyval(np.asarray(coeffs, dtype=np.float64), grid))
-    return grid, v
 
 
 @renamed_args(positional=("degree",))
@@ -162,18 +97,6 @@ def fit_response(measured, radiance, *, degree=6, anchor=True, max_dip=0.005):
                               UserWarning, stacklevel=3)
             return c
     raise PsbenchError("no monotone response fit found; check the chart image")
-
-
-def apply_response(images, coeffs):
-    """Linearise images with the inverse response polynomial.
-
-    The polynomial is tabulated on [0, 1] (4097 samples), made monotone by a running
-    maximum and clipped at 0, then applied by linear interpolation.
-    """
-    grid, lut = _monotone_lut(coeffs)
-    a = np.asarray(images, dtype=np.float64)
-    out = np.interp(a, grid, np.maximum(lut, 0.0))
-    return out.astype(np.float32)
 
 
 # --------------------------------------------------------------------------- flat field
@@ -397,34 +320,6 @@ def light_positions(directions, normals, distance, *, center, radius, center_z=0
         raise PsbenchError("distance must exceed the sphere radius")
     t = -ql + np.sqrt(disc)
     return p + t[:, None] * l
-
-
-def near_light_fields(shape, positions):
-    """Rendered white planes for near lights, normalised to 1 at the image centre.
-
-    Parameters
-    ----------
-    shape : (H, W)
-    positions : (k, 3) float
-        Light positions (pixel units, origin at the image centre on the datum).
-
-    Returns
-    -------
-    (k, H, W) float32
-        Plane image i (Lambert, inverse-square falloff) / its value at the origin.
-    """
-    from ..render.scene import render
-    from ..surfaces import surface_from_height
-
-    P = np.asarray(positions, dtype=np.float64)
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise PsbenchError(f"positions must have shape (k, 3), got {P.shape}")
-    H, W = shape
-    plane = surface_from_height(np.zeros((H, W)))
-    d = P / np.linalg.norm(P, axis=1)[:, None]
-    sc = render(plane, d, model="lambert", light_positions=P, falloff=True, shadows=False)
-    # render's falloff is 1 at the origin, where the plane's shading is cos(zenith)
-    return (sc.images / d[:, 2].astype(np.float32)[:, None, None]).astype(np.float32)
 
 
 @renamed_args(renamed={"mask": "object_mask"})

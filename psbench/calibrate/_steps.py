@@ -13,7 +13,7 @@ import numpy as np
 
 from .._shared.checks import PsbenchError
 from ..io import load_calibration, read_dataset, read_image, save_calibration
-from ._calibration import Calibration, apply_calibration
+from ..io._calibration import Calibration, apply_calibration
 from ._fit import (chart_means, fit_response, flat_field, hot_pixels, light_directions_from_sphere,
                    light_positions, light_powers, near_light_fields, pixel_size, sphere_geometry)
 

@@ -36,7 +36,7 @@ __all__ = ["SCAN", "STUDY_METHODS", "render_scan", "reconstruct_scan", "score_pa
 
 #: method label of the scans themselves (the identification's upper bound)
 SCAN = "scan"
-#: the study's PS methods (labels of :data:`psbench.forensic.pipeline.METHODS`)
+#: the study's PS methods (labels of :data:`psbench.forensic.pipeline.RECIPES`)
 STUDY_METHODS = ("None", "Th-Hi-Re-Sh", "weighted Th-Hi-Re-Sh", "WPS", "robust", "tsfit")
 
 

@@ -5,7 +5,9 @@
     coarser pixel size, and the command says so), compares them by congruent matching
     cells (:func:`psbench.forensic.cmc`: band-passed heights, cells on A registered on B)
     and prints CCFmax, the CMC count, the consensus pose and the times; writes a picture
-    of the two band-passed scans with the cells drawn on both.
+    of the two band-passed scans with the cells drawn on both (default
+    ``<results>/out/compare/<A>_vs_<B>_cmc.png``, ``<results>`` = ``$PSBENCH_RESULTS`` or
+    ``results``: outputs stay out of the working tree).
 ``psbench-forensic reconstruct FOLDER --out heights.x3p``
     Reads a DiLiGenT-layout folder or a rig capture (:func:`psbench.io.read_dataset`,
     its calibration applied), reconstructs the heights in µm with the recommended recipe
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 import warnings
@@ -54,7 +57,8 @@ def _parser():
     c.add_argument("b", metavar="B.x3p", help="compared scan (each cell is registered on it)")
     c.add_argument("--picture", metavar="PNG",
                    help="where to write the picture of the cells (default: "
-                        "<A>_vs_<B>_cmc.png in the current folder)")
+                        "results/out/compare/<A>_vs_<B>_cmc.png, under $PSBENCH_RESULTS "
+                        "when set)")
     c.add_argument("--no-picture", action="store_true", help="write no picture")
     c.add_argument("--json", action="store_true",
                    help="print the result as one JSON object instead of text")
@@ -95,8 +99,9 @@ def _compare(args):
             raise PsbenchError(f"{f!r}: expected an .x3p file (ISO 25178-72 topography)")
     picture = None
     if not args.no_picture:
+        root = Path(os.environ.get("PSBENCH_RESULTS") or "results").expanduser()
         picture = Path(args.picture) if args.picture else \
-            Path(f"{Path(args.a).stem}_vs_{Path(args.b).stem}_cmc.png")
+            root / "out" / "compare" / f"{Path(args.a).stem}_vs_{Path(args.b).stem}_cmc.png"
         if picture.suffix.lower() != ".png":
             raise PsbenchError(f"--picture {str(picture)!r}: expected a .png file")
     t0 = time.perf_counter()
@@ -121,6 +126,7 @@ def _compare(args):
         from ._cmc_picture import cells_picture
         from ..io._pictures import write_png
 
+        picture.parent.mkdir(parents=True, exist_ok=True)
         write_png(picture, cells_picture(res, a, b))
         out["picture"] = str(picture)
     if args.json:
@@ -172,7 +178,7 @@ def _pixel_size(args, ds):
 
 def _reconstruct(args):
     from ..io import read_dataset, write_x3p
-    from ..io._pictures import titled, write_png
+    from ..io._pictures import text_px, titled, write_png
     from ..io._relief import height_picture
     from .recipe import reconstruct_heights
 
@@ -203,8 +209,9 @@ def _reconstruct(args):
     if args.creator:
         meta["creator"] = args.creator
     write_x3p(out, z, pixel_size=px, **meta)
-    write_png(png, titled(height_picture(z / px, m), f"{folder.name}: heights "
-                                                      f"(to scale, {px:g} um pixels)"))
+    rel = height_picture(z / px, m, pixel_size=px)
+    write_png(png, titled(rel, f"{folder.name}: heights (to scale, {px:g} um pixels)",
+                          size=text_px(max(rel.shape[:2]), least=16)))
     v = z[m]
     print(f"{out}: {W} x {H} heights at {px:g} um, {int(m.sum())} valid, range "
           f"{float(v.min()):.2f} to {float(v.max()):.2f} um | shaded view: {png}")

@@ -35,7 +35,9 @@ import numpy as np
 import pandas as pd
 
 from ..integrate.bilateral import bilateral_integrate
+from .. import registry
 from .._shared.checks import PsbenchError
+from .._shared.deprecation import renamed_names
 from ..integrate.poisson import integrate
 from ..metrics.errors import normal_error
 from ..solve import solve
@@ -44,14 +46,17 @@ from .identify import LONG_CUTOFF, bandpass, register
 from .plane import Plane, estimate_plane, level, level_sample, tilt_surface
 from .presets import acquire
 
-__all__ = ["METHODS", "INTEGRATORS", "TRUTH", "TRUTH_NORMALS", "Reconstruction", "reconstruct",
+__all__ = ["RECIPES", "recipes", "INTEGRATORS", "TRUTH", "TRUTH_NORMALS", "Reconstruction",
+           "reconstruct",
            "solve_kwargs", "roughness", "height_error", "score_pairs", "separation", "auc",
            "evaluate", "plane_study"]
 
-#: method label -> keyword arguments of :func:`psbench.solve` (``weights_um``: see
-#: :func:`solve_kwargs`). The thesis's four (Figs. 7.8-7.9), its FWLSE (Section 3.4.1),
-#: and psbench's robust estimators.
-METHODS = {
+#: psbench's recipes: method label -> keyword arguments of :func:`psbench.solve`
+#: (``weights_um``: see :func:`solve_kwargs`). The thesis's four (Figs. 7.8-7.9), its
+#: FWLSE (Section 3.4.1), and psbench's robust estimators. Registered in the
+#: ``psbench.recipes`` group of :mod:`psbench.registry`, where plug-ins add theirs
+#: (:class:`psbench.registry.Recipe`); :func:`recipes` lists them all.
+RECIPES = {
     "None": {"mask": "None"},
     "Th-Hi-Re-Sh": {"mask": "Th-Hi-Re-Sh"},
     "weighted Th-Hi-Re-Sh": {"mask": "Th-Hi-Re-Sh", "weighted": True},
@@ -68,7 +73,7 @@ METHODS = {
 _WEIGHTS_AT = {"dilate_radius": 7, "smooth_sigma": 3.0}
 #: integrator label -> function(normals, object_mask) -> heights (pixel units)
 INTEGRATORS = {
-    "poisson": lambda n, m: integrate(n, object_mask=m, method="poisson"),
+    "poisson": lambda n, m: integrate(n, object_mask=m, integrator="poisson"),
     "bilateral": lambda n, m: bilateral_integrate(n, m),
 }
 #: the method label of the ground-truth heights (upper bound of the identification)
@@ -77,8 +82,15 @@ TRUTH = "ground truth"
 TRUTH_NORMALS = "ground-truth normals"
 
 
+def recipes() -> dict:
+    """Every registered recipe, label -> keyword arguments of :func:`psbench.solve`
+    (psbench's :data:`RECIPES` first, then plug-ins')."""
+    return {name: dict(r.solve) for name, r in registry.recipes().items()}
+
+
 def solve_kwargs(label, pixel_size):
-    """Keyword arguments of :func:`psbench.solve` for a method label of :data:`METHODS`.
+    """Keyword arguments of :func:`psbench.solve` for a registered method label
+    (:func:`recipes`).
 
     ``weights_um``: the weighted masks' dilation radius and blur sigma are physical
     lengths, the thesis's pixel values at its 4.9 um pixel (34 um and 15 um), converted
@@ -86,9 +98,10 @@ def solve_kwargs(label, pixel_size):
     it is the thesis's setting; on coarser images the thesis's pixel values blur over
     larger areas of the case (at 9.8 um the default dilation reaches 69 um).
     """
-    if label not in METHODS:
-        raise PsbenchError(f"method {label!r} is not known; valid choices: {', '.join(METHODS)}")
-    kw = dict(METHODS[label])
+    known = recipes()
+    if label not in known:
+        raise PsbenchError(f"method {label!r} is not known; valid choices: {', '.join(known)}")
+    kw = known[label]
     if kw.pop("weights_um", False):
         f = DEFAULT_PIXEL_SIZE / float(pixel_size)
         r = max(1, int(round(_WEIGHTS_AT["dilate_radius"] * f)))
@@ -164,7 +177,7 @@ def _crop(z, m):
     return np.ascontiguousarray(z[sl]), np.ascontiguousarray(m[sl])
 
 
-def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRATORS),
+def reconstruct(cartridge, *, methods=tuple(RECIPES), integrators=tuple(INTEGRATORS),
                 seed=0, short=None, long=LONG_CUTOFF, keep_normals=False,
                 solve_options=None, truth_normals=False, compare=("breech_face",),
                 domain="case"):
@@ -174,7 +187,7 @@ def reconstruct(cartridge, *, methods=tuple(METHODS), integrators=tuple(INTEGRAT
     ----------
     cartridge : Cartridge
     methods : sequence of str
-        Keys of :data:`METHODS`.
+        Labels of :func:`recipes` (default: psbench's :data:`RECIPES`).
     integrators : sequence of str
         Keys of :data:`INTEGRATORS`.
     seed : int
@@ -332,7 +345,7 @@ def separation(scores, by=("region", "method", "integrator")):
     return pd.DataFrame(out)
 
 
-def evaluate(guns, cases, *, size=512, methods=tuple(METHODS),
+def evaluate(guns, cases, *, size=512, methods=tuple(RECIPES),
              integrators=tuple(INTEGRATORS), seed=0, short=None, long=LONG_CUTOFF,
              solve_options=None, register_options=None, truth_normals=True,
              compare=("breech_face", "firing_pin"), domain="case", progress=None):
@@ -448,7 +461,7 @@ def plane_study(cartridge, tilts=(1.0, 3.0, 5.0), *, azimuth=30.0,
     def first(surface):
         acq = acquire(surface, seed=seed)
         res = solve(acq.images, acq.lights, object_mask=surface.object_mask,
-                    **METHODS.get(first_pass, {"mask": first_pass}))
+                    **recipes().get(first_pass, {"mask": first_pass}))
         return estimate_plane(res.normals, surface.object_mask)
 
     rows = []
@@ -470,3 +483,6 @@ def plane_study(cartridge, tilts=(1.0, 3.0, 5.0), *, azimuth=30.0,
                      "rounds": len(hist),
                      **_capture(levelled, method, integrator, reference, seed, short, long)})
     return pd.DataFrame(rows)
+
+
+__getattr__ = renamed_names(globals(), {"METHODS": "RECIPES"})

@@ -118,5 +118,5 @@ def reconstruct_heights(images, lights, *, object_mask, pixel_size, max_clipped=
         use[:] = True
     res = solve(np.ascontiguousarray(I[use]), S[use], mask=mask, object_mask=m)
     normals = res.normals
-    h = integrate(normals, object_mask=m, method=integrator)
+    h = integrate(normals, object_mask=m, integrator=integrator)
     return np.where(m, h * np.float32(ps), 0.0).astype(np.float32)

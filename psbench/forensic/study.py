@@ -9,7 +9,7 @@ seed = the run's ``seed``) and evaluates them with :mod:`psbench.forensic.pipeli
 A run is one ``part``:
 
 ``method``
-    One method label of :data:`~.pipeline.METHODS` on every case: per case and
+    One method label of :func:`~.pipeline.recipes` on every case: per case and
     integrator NE, roughness, height errors (µm) and the stage times (acquire, solve,
     integrate); the CCFmax of every pair of cases per (integrator, region), with the
     registration's angle error and time. When the study's ``time_size`` differs from
@@ -92,7 +92,7 @@ def run(part="method", label=None, *, size=1024, seed=0, study=None):
     ----------
     part : {"method", "truth", "panels"}
     label : str
-        Method label (:data:`~.pipeline.METHODS`) of a ``method`` run.
+        Method label (:func:`~.pipeline.recipes`) of a ``method`` run.
     size : int
         Image side of the study (pixel size 4.9 x 2048 / size µm).
     seed : int
@@ -110,7 +110,7 @@ def run(part="method", label=None, *, size=1024, seed=0, study=None):
     st = _options(study)
     if part == "method":
         if label is None:
-            raise PsbenchError(f"part={part!r} needs label=<one of {', '.join(P.METHODS)}>")
+            raise PsbenchError(f"part={part!r} needs label=<one of {', '.join(P.recipes())}>")
         P.solve_kwargs(label, 4.9)                 # unknown labels fail before any work
     make_cartridge(size, gun=PAIR[0], case=PAIR[1])    # size too small: fails here
     head = {"part": part, "label": label, "size": int(size), "seed": int(seed)}

@@ -46,11 +46,12 @@ def warm_up(solve_run, p, sc):
     n = min(WARM_UP_SIZE, H, W)
     r0, c0 = (H - n) // 2, (W - n) // 2
     crop = (slice(r0, r0 + n), slice(c0, c0 + n))
-    mask = None if sc.mask is None else np.ascontiguousarray(np.asarray(sc.mask)[crop])
+    object_mask = (None if sc.object_mask is None
+                   else np.ascontiguousarray(np.asarray(sc.object_mask)[crop]))
     images = np.ascontiguousarray(sc.images[(slice(None),) + crop])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            solve_run(p, images, sc.lights, mask)
+            solve_run(p, images, sc.lights, object_mask)
         except Exception:  # noqa: BLE001 - a warm-up only; the timed solve raises
             pass

@@ -494,13 +494,20 @@ def _interrupted():
 
 
 def _wait_children(timeout=5.0):
-    """Wait (a few seconds at most) for this process's children to exit."""
+    """Wait (a few seconds at most) for this process's children to exit.
+
+    The resource trackers of joblib and multiprocessing are not waited for: they exit
+    only after this process does, so waiting would always cost the whole timeout."""
     try:
         import psutil
     except ImportError:  # pragma: no cover - a declared dependency
         return
     with contextlib.suppress(Exception):
-        kids = psutil.Process().children(recursive=True)
+        kids = []
+        for k in psutil.Process().children(recursive=True):
+            with contextlib.suppress(psutil.Error):
+                if "resource_tracker" not in " ".join(k.cmdline()):
+                    kids.append(k)
         psutil.wait_procs(kids, timeout=timeout)
 
 

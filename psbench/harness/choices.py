@@ -1,9 +1,10 @@
 """Where the valid values of run parameters come from, read when needed.
 
-Plug-in names (masks, methods, surfaces, experiments) come from :mod:`psbench.registry`
-(built-ins are always found there); fixed vocabularies (render models, WPS weights, Th
-scopes) from the module that defines them, imported on first use. Each source returns
-``{name: one-line help}``; the ``check_*`` functions validate one normalized value.
+Plug-in names (masks, methods, surfaces, experiments, analyses, run kinds) come from
+:mod:`psbench.registry` (built-ins are always found there); fixed vocabularies (render
+models, WPS weights, Th scopes) from the module that defines them, imported on first use.
+Each source returns ``{name: one-line help}``; the ``check_*`` functions validate one
+normalized value.
 """
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ from pathlib import Path
 
 from .._shared.checks import PsbenchError
 
-__all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights", "th_scopes",
-           "analyses", "choice_sources", "options_class", "check_surface", "check_data",
+__all__ = ["masks", "methods", "surfaces", "experiments", "models", "wps_weights",
+           "th_scopes", "run_kinds", "analyses", "choice_sources", "options_class", "check_surface", "check_data",
            "check_lights", "check_mask", "check_analysis"]
 
 
@@ -68,12 +69,18 @@ def th_scopes() -> dict:
     return {s: "" for s in (_legacy("psbench.solve.masks:SCOPES") or ())}
 
 
-def analyses() -> dict:
-    from ..analysis import builtin as analysis
+def run_kinds() -> dict:
+    """The built-in run kinds and those plug-ins register."""
+    out = {"solve": "render or read a scene, solve it, score it",
+           "cond": "condition value of the light layout (no images)",
+           "analysis": "a registered analysis, stored as json"}
+    out.update(_registry("run_kinds"))
+    return out
 
-    return {n: (v.__doc__ or "").strip().split("\n")[0] for n, v in sorted(vars(analysis).items())
-            if callable(v) and not n.startswith("_")
-            and getattr(v, "__module__", "") == analysis.__name__}
+
+def analyses() -> dict:
+    """Registered ``kind=analysis`` computations (psbench's and plug-ins')."""
+    return _registry("analyses")
 
 
 def choice_sources() -> dict:
@@ -134,5 +141,5 @@ def check_mask(value, params):
 def check_analysis(value, params):
     valid = analyses()
     if value not in valid:
-        raise PsbenchError(f"analysis={value!r} is not a function of psbench.analysis; valid: "
+        raise PsbenchError(f"analysis={value!r} is not a registered analysis; valid: "
                            f"{', '.join(valid)}")

@@ -122,7 +122,7 @@ def write_run(path, *, lvl, row, result, scene, line) -> float:
         outliers = np.asarray(truth.highlight, bool) | np.asarray(truth.shadow, bool)
     full = lvl == "all"
     with atomic_dir(path, overwrite=True) as tmp:
-        files = write_outputs(tmp, result, object_mask=scene.mask, images=scene.images,
+        files = write_outputs(tmp, result, object_mask=scene.object_mask, images=scene.images,
                               truth_normals=scene.normals, true_outliers=outliers,
                               arrays=full, ply=full, obj=full, per_image=False,
                               pixel_size=getattr(scene, "pixel_size", None))

@@ -70,11 +70,12 @@ def normalize(params: dict, *, base_dir=None) -> dict:
                data_run=raw["data"] is not None, explicit=explicit, out={})
     out = ctx["out"]
     out["kind"] = kind = S.SPEC["kind"].coerce(raw["kind"])
+    S.check_kind(kind)
     for par in S.PARAMS:
         if par.alias or par.name == "kind":
             continue
         v = raw[par.name]
-        if kind not in par.kinds:
+        if not S.uses(par, kind):
             v = par.empty
         elif ctx["data_run"] and par.synthetic:
             v = None
@@ -86,7 +87,7 @@ def normalize(params: dict, *, base_dir=None) -> dict:
     if kind == "cond" and out["lights"] is None:
         raise PsbenchError("kind=cond needs lights")
     if kind == "analysis" and not out["analysis"]:
-        raise PsbenchError("kind=analysis needs analysis=<function name in psbench.analysis>")
+        raise PsbenchError("kind=analysis needs analysis=<name of a registered analysis>")
     return out
 
 
@@ -116,8 +117,8 @@ def validate(params: dict) -> None:
         One line naming the parameter and listing the valid choices.
     """
     kind = params["kind"]
-    if kind == "noop":
-        return
+    if kind not in S.RUN_KINDS:
+        return                      # a plug-in kind checks its own parameters
     for par in S.PARAMS:
         v = params.get(par.name)
         if kind in par.checked and v is not None:

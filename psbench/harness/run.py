@@ -10,11 +10,13 @@ normalized by :func:`normalize`; their normalized json hashes to the ``run_id``.
   adds the NE-vs-surface-zenith curve (json) to the row, ``ne_map`` the per-pixel NE
   map (small 16-bit PNG, :mod:`psbench.harness.nemap`).
 - ``cond``: condition value of the layout ``lights`` (Table 2.1), no images.
-- ``analysis``: calls ``psbench.analysis.<analysis>`` with the run parameters its
-  signature accepts plus ``args``; its output is stored as json in ``payload``.
-- ``noop``: harness self-test, computes nothing (``args: {fail: msg, sleep: s, die: true,
-  alloc_mb: MB}``; ``die`` kills the process running it and ``alloc_mb`` allocates that
-  much memory: only for tests of crashes and memory limits).
+- ``analysis``: calls the registered analysis ``analysis`` (psbench's in
+  :mod:`psbench.analysis`, or a plug-in's: :class:`psbench.registry.Analysis`) with the
+  run parameters its signature accepts plus ``args``; its output is stored as json in
+  ``payload``.
+- a plug-in's kind (:class:`psbench.registry.RunKind`, entry-point group
+  ``psbench.run_kinds``): its function fills the row (the tests register ``noop``, a
+  harness self-test, this way).
 
 Runs sharing a scene (:func:`scene_key`) reuse one rendered scene in
 :func:`run_chunk`.
@@ -35,16 +37,17 @@ from pathlib import Path
 import numpy as np
 
 from .._shared.checks import PsbenchError
+from .._shared.deprecation import renamed_names
 from . import spec as S
 from .params import PARAMS, normalize, run_id, scene_key, validate
 from .params import plain as _plain  # noqa: F401 - used by grid
 from ._timing import pinned_threads, warm_up  # noqa: F401 - pinned_threads: public here
 
-__all__ = ["PARAMS", "KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
+__all__ = ["PARAMS", "RUN_KINDS", "EXTRAS", "normalize", "run_id", "scene_key", "validate",
            "execute", "run_chunk", "format_row", "provenance", "select_lights", "solve_run",
            "base_row", "failed_row", "pinned_threads"]
 
-KINDS, EXTRAS = S.KINDS, S.EXTRAS
+RUN_KINDS, EXTRAS = S.RUN_KINDS, S.EXTRAS
 
 
 # ---------------------------------------------------------------------------- provenance
@@ -105,7 +108,7 @@ class _Scene:
                 self.images, self.lights, self.lights_read = select_lights(
                     ds.images, ds.lights, p["lights"], report=True)
                 _warn_far_lights(p["data"], self.lights_read)
-            self.mask = ds.object_mask
+            self.object_mask = ds.object_mask
             self.normals = getattr(ds, "normals", None)
             self.pixel_size = ds.meta.get("pixel_size_um")
         else:
@@ -127,7 +130,7 @@ class _Scene:
             scene = render(surf, lay, model=p["model"], shadows=p["shadows"], noise=p["noise"],
                            seed=p["seed"], quantize=p["quantize"], bounces=p.get("bounces") or 0,
                            **(p.get("render") or {}))
-            self.images, self.lights, self.mask = scene.images, lay, surf.object_mask
+            self.images, self.lights, self.object_mask = scene.images, lay, surf.object_mask
             self.normals, self.truth = surf.normals, scene
         self.t_render = time.perf_counter() - t0
         self._dr = None
@@ -137,7 +140,7 @@ class _Scene:
         if self._dr is None:
             from ..metrics.errors import dynamic_range
 
-            self._dr = dynamic_range(self.images, object_mask=self.mask)
+            self._dr = dynamic_range(self.images, object_mask=self.object_mask)
         return self._dr
 
 
@@ -251,32 +254,32 @@ def _solve_metrics(p, sc, keep=None):
 
     warm_up(solve_run, p, sc)
     t0 = time.perf_counter()
-    res = solve_run(p, sc.images, sc.lights, sc.mask)
+    res = solve_run(p, sc.images, sc.lights, sc.object_mask)
     t_solve = time.perf_counter() - t0
     if keep is not None:
         keep.update(result=res, scene=sc)
     row = dict(t_solve=t_solve, n_images=int(sc.images.shape[0]), size=int(sc.images.shape[1]))
     if sc.normals is not None:
-        st = normal_error_stats(res.normals, sc.normals, object_mask=sc.mask)
+        st = normal_error_stats(res.normals, sc.normals, object_mask=sc.object_mask)
         row.update({f"ne_{k}": _f(v) for k, v in st.items()})
         if "ne_by_zenith" in p["extras"]:
-            row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, object_mask=sc.mask))
+            row["ne_by_zenith"] = _json(ne_by_zenith(res.normals, sc.normals, object_mask=sc.object_mask))
         if "ne_map" in p["extras"]:
             from . import nemap
-            row["ne_map"] = nemap.encode(normal_error_map(res.normals, sc.normals), sc.mask)
+            row["ne_map"] = nemap.encode(normal_error_map(res.normals, sc.normals), sc.object_mask)
     for norm in ("l1", "l2", "linf"):
-        row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, object_mask=sc.mask))
+        row[f"ie_{norm}"] = _f(intensity_error(sc.images, res, sc.lights, norm=norm, object_mask=sc.object_mask))
     w = getattr(res, "ring_weights", None)
     if w is not None:
         row["ie_weighted"] = _f(intensity_error(sc.images, res, sc.lights, norm="l2",
-                                                object_mask=sc.mask, weights=w))
+                                                object_mask=sc.object_mask, weights=w))
     ve = getattr(res, "ve", None)
     if ve is not None:  # ground-truth-free validation error (psbench.solve.validation)
         row.update(ve_mean=_f(ve.mean), ve_median=_f(ve.median))
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):
-        qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, object_mask=sc.mask)
+        qf = quality_factor(~np.asarray(res.valid, dtype=bool), sc.truth, object_mask=sc.object_mask)
         row.update(qf_hi=_f(qf["hi"]), qf_sh=_f(qf["sh"]), qf_total=_f(qf["total"]))
         if getattr(sc.truth, "bounces", 0):  # secondary light: the SR mask's truth
             row["qf_sr"] = _f(_qf_sr(res, sc))
@@ -292,14 +295,14 @@ def _qf_sr(res, sc):
     pos = np.asarray(sc.truth.secondary_fraction) > t
     none = np.zeros_like(pos)
     qf = quality_factor(~np.asarray(res.valid, dtype=bool),
-                        {"highlight": pos, "shadow": none}, object_mask=sc.mask)
+                        {"highlight": pos, "shadow": none}, object_mask=sc.object_mask)
     return qf["hi"]
 
 
 def _analysis(p):
-    from ..analysis import builtin as analysis
+    from .. import registry
 
-    fn = getattr(analysis, p["analysis"])       # validate() checked the name
+    fn = registry.get("analyses", p["analysis"], what="analysis").func   # validate() checked it
     sig = inspect.signature(fn)
     has_kw = any(q.kind == q.VAR_KEYWORD for q in sig.parameters.values())
     cand = {k: v for k, v in p.items() if k not in ("kind", "analysis", "args", "extras")
@@ -391,19 +394,8 @@ def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict
 def _compute(p, row, cache, keep=None):
     """The work of one run; fills ``row``'s metric columns."""
     validate(p)
-    if p["kind"] == "noop":
-        a = p["args"]
-        if a.get("sleep"):
-            time.sleep(float(a["sleep"]))
-        if a.get("fail"):
-            raise RuntimeError(str(a["fail"]))
-        if a.get("alloc_mb"):                  # memory exhaustion, for tests of limits
-            row["payload"] = str(float(np.ones(int(float(a["alloc_mb"]) * 2**17)).sum()))
-        if a.get("die"):                      # simulate a run killed mid-way (OOM killer)
-            import signal
-
-            os.kill(os.getpid(), signal.SIGKILL)
-        row.update(ne_mean=float(int(row["run_id"][:4], 16) % 100) / 10.0)
+    if p["kind"] not in S.RUN_KINDS:             # a plug-in's kind
+        S.plugin_kind(p["kind"]).func(p, row)
     elif p["kind"] == "cond":
         from ..lights import layout
 
@@ -537,3 +529,6 @@ def _isna(v):
         return v is None or (isinstance(v, float) and math.isnan(v))
     except TypeError:
         return False
+
+
+__getattr__ = renamed_names(globals(), {"KINDS": "RUN_KINDS"})

@@ -35,18 +35,21 @@ from typing import Any, Callable
 import numpy as np
 
 from .._shared.checks import PsbenchError
+from .._shared.deprecation import renamed_names
 from . import choices as C
 
-__all__ = ["Param", "PARAMS", "SETTINGS", "SPEC", "KINDS", "EXTRAS", "LAUNCHERS", "HYDRA_NODE",
+__all__ = ["Param", "PARAMS", "SETTINGS", "SPEC", "RUN_KINDS", "EXTRAS", "LAUNCHERS", "HYDRA_NODE",
+           "uses", "check_kind", "plugin_kind",
            "param_names", "defaults", "hydra_node", "register_hydra", "columns", "column_value",
            "coerce_settings"]
 
 #: name of the generated defaults node in Hydra's ConfigStore
 HYDRA_NODE = "psbench_spec"
-KINDS = ("solve", "cond", "analysis", "noop")
+#: the built-in run kinds; plug-ins add others (:class:`psbench.registry.RunKind`)
+RUN_KINDS = ("solve", "cond", "analysis")
 EXTRAS = ("ne_by_zenith", "ne_map")
 LAUNCHERS = ("joblib", "submitit_local", "submitit_slurm", "submitit_debug")
-ALL_KINDS = KINDS
+ALL_KINDS = RUN_KINDS
 _SAME = object()
 _TYPES = ("str", "int", "float", "bool", "mapping", "list")
 _ARROW = {"str": "string", "int": "int64", "float": "float64", "bool": "bool",
@@ -310,16 +313,19 @@ def _options(value, ctx):
     except PsbenchError as exc:
         raise PsbenchError(f"options: {exc}") from None
     default = cls()                 # a value equal to the default is the default run
-    return {k: v for k, v in value.items() if v != getattr(default, k)}
+    from ..solve.base import RENAMED_OPTIONS
+
+    value = {RENAMED_OPTIONS.get(k, k): v for k, v in value.items()}    # build() warned
+    return {k: v for k, v in sorted(value.items()) if v != getattr(default, k)}
 
 
 # ----------------------------------------------------------------------------- the spec
-_RUN = ("solve", "analysis", "noop")      # kinds that render / read a scene
+_RUN = ("solve", "analysis")      # kinds that render / read a scene
 _SCENE = ("solve", "analysis")
 
 #: Run parameters, in column order. Together they identify a run (run id).
 PARAMS: tuple[Param, ...] = (
-    Param("kind", "str", "solve", "what the run computes", choices=KINDS, scene=True),
+    Param("kind", "str", "solve", "what the run computes", choices=C.run_kinds, scene=True),
     Param("surface", "str", "sombrero2", "test surface: a name, or a path to a .npy / 16-bit "
           ".png height map (pixel units) or an .x3p topography (um, its pixel size)", choices=C.surfaces, kinds=_RUN, checked=_SCENE,
           synthetic=True, scene=True, normalize=_surface, check=C.check_surface),
@@ -327,7 +333,7 @@ PARAMS: tuple[Param, ...] = (
           nullable=True, kinds=_RUN, checked=_SCENE, scene=True, normalize=_data,
           check=C.check_data, metavar="FOLDER"),
     Param("lights", "str", "45x8", "light layout: rings ZENITHxCOUNT joined by '+' (30x8+60x8); "
-          "with data=, the folder's nearest lights", checked=KINDS, scene=True,
+          "with data=, the folder's nearest lights", checked=RUN_KINDS, scene=True,
           normalize=_lights, check=C.check_lights, hydra="${zenith}x${count}", metavar="LAYOUT"),
     Param("zenith", "float", 45, "source zenith of the default single ring, degrees "
           "(lights=<zenith>x<count>)", alias=True, metavar="DEG"),
@@ -372,10 +378,10 @@ PARAMS: tuple[Param, ...] = (
     Param("th_scope", "str", "image", "where Th / Hi / CS measure dynamic ranges (image: the "
           "thesis's rule)", choices=C.th_scopes, kinds=_RUN, checked=("solve",)),
     Param("seed", "int", 0, "seed of the noise and of random subsets", kinds=_RUN, scene=True),
-    Param("analysis", "str", None, "kind=analysis: a function of psbench.analysis",
+    Param("analysis", "str", None, "kind=analysis: a registered analysis (psbench.analysis or a plug-in)",
           choices=C.analyses, nullable=True, kinds=("analysis",), checked=("analysis",),
           check=C.check_analysis, metavar="NAME"),
-    Param("args", "mapping", {}, "kind=analysis / noop: extra keyword arguments", kinds=_RUN,
+    Param("args", "mapping", {}, "kind=analysis (and plug-in kinds): extra keyword arguments", kinds=_RUN,
           metavar="{}"),
     Param("study", "mapping", {}, "kind=analysis: settings an experiment's scale gives its "
           "analysis (chapter7: guns, cases, time_size, ...)", kinds=("analysis",),
@@ -416,6 +422,29 @@ SETTINGS: tuple[Param, ...] = (
 #: name -> Param of every run parameter (aliases included)
 SPEC: dict[str, Param] = {p.name: p for p in PARAMS}
 _SETTINGS = {p.name: p for p in SETTINGS}
+
+
+def plugin_kind(kind):
+    """The :class:`~psbench.registry.RunKind` of a plug-in kind."""
+    from .. import registry
+
+    return registry.get("run_kinds", kind, what="kind")
+
+
+def check_kind(kind) -> None:
+    """Raise unless ``kind`` is a built-in or registered run kind (listing them)."""
+    if kind not in RUN_KINDS and kind not in C.run_kinds():
+        raise PsbenchError(f"kind={kind!r} is not known; valid choices: "
+                           f"{', '.join(C.run_kinds())}")
+
+
+def uses(par, kind) -> bool:
+    """Whether a run of ``kind`` reads parameter ``par`` (a plug-in kind: the parameters
+    its :class:`~psbench.registry.RunKind` names, by default those of a ``solve`` run)."""
+    if kind in RUN_KINDS:
+        return kind in par.kinds
+    names = plugin_kind(kind).params
+    return "solve" in par.kinds if names is None else par.name in names
 
 
 def param_names(*, aliases=False) -> tuple[str, ...]:
@@ -468,3 +497,6 @@ def coerce_settings(values: dict) -> dict:
         skip = p is None or p.type == "mapping" or name == "experiment"   # a grid mapping
         out[name] = v if skip else p.coerce(v)
     return out
+
+
+__getattr__ = renamed_names(globals(), {"KINDS": "RUN_KINDS"})

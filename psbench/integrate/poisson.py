@@ -73,12 +73,12 @@ import numpy as np
 import scipy.fft as sfft
 
 from .._shared.checks import PsbenchError, as_mask, choice
-from .._shared.deprecation import renamed_args
+from .._shared.deprecation import renamed_args, renamed_names
 
-__all__ = ["integrate", "gradients", "METHODS", "NZ_MIN"]
+__all__ = ["integrate", "gradients", "INTEGRATORS", "NZ_MIN"]
 
-#: integration methods accepted by :func:`integrate`
-METHODS = ("poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral")
+#: integrators accepted by :func:`integrate` (formerly ``METHODS``)
+INTEGRATORS = ("poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral")
 #: lower clamp on n_z when converting normals to gradients
 NZ_MIN = 0.05
 
@@ -342,7 +342,7 @@ def _poisson_exact(gcol, grow, mask, *, tol, maxiter):
         elif not ok:
             warnings.warn(f"integrate: conjugate gradients stopped after {it} iterations "
                           f"above tol={tol:g}; heights are approximate (raise maxiter or "
-                          f"use method='poisson-sparse')", RuntimeWarning, stacklevel=4)
+                          f"use integrator='poisson-sparse')", RuntimeWarning, stacklevel=4)
         z[big_mask] = zb[big_mask]
     return _align_components(z, mask, label=label, ncomp=ncomp)
 
@@ -409,8 +409,9 @@ def _poisson_sparse(gcol, grow, mask):
     return z
 
 
-@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
-def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_min=NZ_MIN,
+@renamed_args(positional=("object_mask",),
+              renamed={"mask": "object_mask", "method": "integrator"})
+def integrate(normals, *, object_mask=None, integrator="poisson", datum="min", nz_min=NZ_MIN,
               tol=1e-4, maxiter=100):
     """Integrate a normal map into a height map.
 
@@ -422,12 +423,13 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
     object_mask : (H, W) bool, optional
         Object region. Gradients outside it and edges crossing its boundary are
         ignored. None: the whole frame.
-    method : {"poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral"}
-        See the module docstring. "poisson": exact masked least squares (one
-        DCT solve without a mask, else DCT-preconditioned conjugate gradients).
-        "poisson-dct": one DCT solve with a flat background membrane (fastest,
-        biased under a mask). "fc": Frankot–Chellappa. "poisson-sparse": exact,
-        sparse direct solver (slow reference). "bilateral": discontinuity-preserving
+    integrator : {"poisson", "poisson-dct", "fc", "poisson-sparse", "bilateral"}
+        See the module docstring (formerly ``method=``, which still works with a
+        warning). "poisson": exact masked least squares (one DCT solve without a
+        mask, else DCT-preconditioned conjugate gradients). "poisson-dct": one DCT
+        solve with a flat background membrane (fastest, biased under a mask). "fc":
+        Frankot–Chellappa. "poisson-sparse": exact, sparse direct solver (slow
+        reference). "bilateral": discontinuity-preserving
         bilateral normal integration (Cao et al., ECCV 2022; :mod:`psbench._bilateral`,
         its defaults; ``nz_min``, ``tol`` and ``maxiter`` do not apply), which keeps
         steep walls and steps that Poisson smooths, at tens of times its cost.
@@ -445,7 +447,7 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
         Heights in pixel units (z up towards the camera), 0 outside the mask.
     """
     n = _check_normals(normals)
-    choice(method, METHODS, "method")
+    choice(integrator, INTEGRATORS, "integrator")
     choice(datum, ("min", "mean"), "datum")
     if not (0 < _number(nz_min, "nz_min") <= 1):
         raise PsbenchError(f"nz_min must be in (0, 1], got {nz_min}")
@@ -456,7 +458,7 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
         raise PsbenchError(f"maxiter must be an integer >= 1, got {maxiter!r}")
     maxiter = int(maxiter)
     H, W = n.shape[:2]
-    if method == "bilateral":
+    if integrator == "bilateral":
         from .bilateral import bilateral_integrate
 
         return bilateral_integrate(n, object_mask, datum=datum)
@@ -473,7 +475,7 @@ def integrate(normals, *, object_mask=None, method="poisson", datum="min", nz_mi
         box = (slice(max(rows[0] - 1, 0), min(rows[-1] + 2, H)),
                slice(max(cols[0] - 1, 0), min(cols[-1] + 2, W)))
         n, m = n[box], m[box]  # at least 2x2 since H, W >= 2
-    z = _integrate_box(n, m, method, float(nz_min), float(tol), int(maxiter))
+    z = _integrate_box(n, m, integrator, float(nz_min), float(tol), int(maxiter))
     zi = z if m is None else z[m]
     z = z - (zi.min() if datum == "min" else zi.mean())
     if m is not None:
@@ -495,3 +497,6 @@ def _integrate_box(n, m, method, nz_min, tol, maxiter):
         mm = np.ones(n.shape[:2], dtype=bool) if m is None else m
         z = _align_components(_poisson_sparse(gcol, grow, mm), mm)
     return z
+
+
+__getattr__ = renamed_names(globals(), {"METHODS": "INTEGRATORS"})

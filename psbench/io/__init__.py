@@ -58,9 +58,11 @@ Writers (:func:`write_dataset`, :func:`write_outputs`, :func:`write_ply`) build 
 files under temporary names and rename them into place.
 
 Modules: ``_images`` (image files), ``_dataset`` (reading folders), ``_write``
-(writing folders and outputs), ``_calibration`` (calibration folders), ``x3p`` (X3P files). This package
-depends on :mod:`psbench.calibrate`'s maths only (``_fit``, ``_calibration``), never on
-its folder steps or command, which use this package.
+(writing folders and outputs), ``_calibration`` (the
+:class:`~psbench.calibrate.Calibration` record, applying it, calibration folders),
+``x3p`` (X3P files). This package does not import
+:mod:`psbench.calibrate`, which measures calibrations one layer up and re-exports the
+record and its application.
 """
 from __future__ import annotations
 

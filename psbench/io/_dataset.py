@@ -10,8 +10,7 @@ import numpy as np
 
 from .._shared.checks import PsbenchError
 from .._shared.deprecation import warn_renamed
-from ..calibrate._calibration import apply_calibration
-from ._calibration import load_calibration
+from ._calibration import apply_calibration, load_calibration
 from ._common import IMAGE_EXT, LUMA, PsbenchWarning, cv2 as _cv2
 from ._images import read_image, read_images
 

@@ -27,7 +27,7 @@ from ._common import cv2 as _cv2
 __all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map", "ve_picture",
            "error_picture", "valid_picture", "weights_picture", "height_picture",
            "titled", "montage", "color_bar", "hstack", "object_box", "write_png", "text_size",
-           "font", "nice_ticks"]
+           "font", "nice_ticks", "text_px", "scale_bar"]
 
 NE_MAX = 20.0                      # deg: colour range of every NE map (as the report's panels)
 BACKGROUND = (255, 255, 255)       # outside the object in colour-mapped pictures
@@ -135,6 +135,13 @@ def font(size=16):
         return ImageFont.load_default()
 
 
+def text_px(side, *, least=14):
+    """Font size (px) for text on a picture whose longer side is ``side`` px: ``least`` up
+    to about 630 px, then 1/45 of the side, so that the text of a 2048 px picture reads
+    as well as a 256 px one's when both are shown at the same size."""
+    return int(max(least, round(float(side) / 45.0)))
+
+
 def text_size(text, size=16):
     """(width, height) in px of ``text`` (one or more lines)."""
     from PIL import Image, ImageDraw
@@ -162,8 +169,10 @@ def _canvas(h, w, color=(255, 255, 255)):
     return out
 
 
-def titled(rgb, title, *, size=16, pad=6):
-    """``rgb`` with ``title`` (one or more lines) centred above it on white."""
+def titled(rgb, title, *, size=16, pad=None):
+    """``rgb`` with ``title`` (one or more lines) centred above it on white (``pad``:
+    default a third of the font size, at least 6 px)."""
+    pad = max(6, size // 3) if pad is None else pad
     tw, th = text_size(title, size)
     H, W = rgb.shape[:2]
     w = max(W, tw + 2 * pad)
@@ -188,8 +197,10 @@ def nice_ticks(vmin, vmax, n=5):
 
 def color_bar(height, vmin, vmax, *, cmap="magma", label="", ticks=None, over=False, size=14):
     """A vertical colour bar ``height`` px tall with tick labels and a rotated-free label
-    written above it; ``over`` marks the top as "and above"."""
-    bar_w, margin = 18, 8
+    written above it; ``over`` marks the top as "and above". The bar's width, margins and
+    ticks grow with the font ``size`` (:func:`text_px` of the picture it stands beside)."""
+    f = max(1.0, size / 14.0)
+    bar_w, margin, tick = int(round(18 * f)), int(round(8 * f)), int(round(4 * f))
     ticks = nice_ticks(vmin, vmax) if ticks is None else np.asarray(ticks, float)
     step = np.diff(ticks).min() if ticks.size > 1 else 0.0
     # the fewest decimals that write every tick exactly (0.25 needs 2, 0.5 needs 1)
@@ -200,17 +211,41 @@ def color_bar(height, vmin, vmax, *, cmap="magma", label="", ticks=None, over=Fa
     top = text_size(label, size)[1] + 2 * margin if label else margin
     bh = max(height - top - margin, 20)
     ramp = np.linspace(vmax, vmin, bh, dtype=np.float32)[:, None].repeat(bar_w, axis=1)
-    w = max(margin + bar_w + 6 + lw + margin, text_size(label, size)[0] + 2 * margin)
+    w = max(margin + bar_w + tick + 2 + lw + margin, text_size(label, size)[0] + 2 * margin)
     out = _canvas(top + bh + margin, w)
     out[top:top + bh, margin:margin + bar_w] = colorize(ramp, vmin, vmax, cmap=cmap)
-    out[top:top + bh, margin] = out[top:top + bh, margin + bar_w - 1] = _INK
-    out[top, margin:margin + bar_w] = out[top + bh - 1, margin:margin + bar_w] = _INK
+    line = max(1, int(round(f)))
+    out[top:top + bh, margin:margin + line] = _INK
+    out[top:top + bh, margin + bar_w - line:margin + bar_w] = _INK
+    out[top:top + line, margin:margin + bar_w] = _INK
+    out[top + bh - line:top + bh, margin:margin + bar_w] = _INK
     items = [(margin, margin, label, size, "la")] if label else []
     for t, s in zip(ticks, labels):
         y = top + (vmax - t) / max(vmax - vmin, 1e-12) * (bh - 1)
-        out[int(round(y)), margin + bar_w:margin + bar_w + 4] = _INK
-        items.append((margin + bar_w + 6, y, s, size, "lm"))
+        yi = int(round(y))
+        out[max(yi - line // 2, 0):yi - line // 2 + line, margin + bar_w:margin + bar_w + tick] \
+            = _INK
+        items.append((margin + bar_w + tick + 2, y, s, size, "lm"))
     return _draw(out, items)
+
+
+def scale_bar(rgb, px_per_um, *, size=14, where=(0.04, 0.94)):
+    """``rgb`` with a scale bar of a round length in micrometres (about a fifth of its
+    width) and its label; ``px_per_um``: picture pixels per micrometre along the
+    horizontal; ``where``: the bar's left end, in fractions of the width and height."""
+    H, W = rgb.shape[:2]
+    if not (np.isfinite(px_per_um) and px_per_um > 0):
+        return rgb
+    want = 0.2 * W / px_per_um                               # um
+    k = 10.0 ** np.floor(np.log10(want))
+    um = max(m * k for m in (1, 2, 5) if m * k <= want * 1.0001)
+    L = int(round(um * px_per_um))
+    x0, y0 = int(where[0] * W), int(where[1] * H)
+    t = max(2, size // 5)
+    out = np.ascontiguousarray(rgb).copy()
+    out[max(y0 - t, 0):y0, x0:x0 + L] = _INK
+    text = f"{um:g} µm" if um < 1000 else f"{um / 1000:g} mm"
+    return _draw(out, [(x0 + L / 2, y0 - t - 3, text, size, "md")])
 
 
 def hstack(*pics, gap=8):
@@ -269,9 +304,10 @@ def write_png(path, rgb):
 def error_picture(ne, object_mask=None, *, vmax=NE_MAX, title=None):
     """NE map with a colour bar (deg) and, when given, a title (e.g. the mean NE)."""
     img = ne_map(ne, object_mask, vmax=vmax)
-    bar = color_bar(img.shape[0], 0.0, vmax, label="NE (deg)", over=True)
-    pic = hstack(img, bar)
-    return titled(pic, title) if title else pic
+    fs = text_px(max(img.shape[:2]))                      # text grows with the picture
+    bar = color_bar(img.shape[0], 0.0, vmax, label="NE (deg)", over=True, size=fs)
+    pic = hstack(img, bar, gap=fs // 2)
+    return titled(pic, title, size=text_px(max(img.shape[:2]), least=16)) if title else pic
 
 
 def ve_picture(ve, object_mask=None, *, title=None):
@@ -283,9 +319,11 @@ def ve_picture(ve, object_mask=None, *, title=None):
     vmax = float(np.percentile(ve[ok], 99)) if ok.any() else 1.0
     vmax = vmax if vmax > 0 else 1.0
     img = colorize(np.where(ok, ve, 0.0), 0.0, vmax, valid=ok)
-    bar = color_bar(img.shape[0], 0.0, vmax, label="ve (held-out |e| / mean I)", over=True)
-    pic = hstack(img, bar)
-    return titled(pic, title) if title else pic
+    fs = text_px(max(img.shape[:2]))
+    bar = color_bar(img.shape[0], 0.0, vmax, label="ve (held-out |e| / mean I)", over=True,
+                    size=fs)
+    pic = hstack(img, bar, gap=fs // 2)
+    return titled(pic, title, size=text_px(max(img.shape[:2]), least=16)) if title else pic
 
 
 def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1200):

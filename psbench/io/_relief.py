@@ -18,8 +18,8 @@ from ._common import cv2 as _cv2
 __all__ = ["height_picture"]
 
 
-def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, max_side=360,
-                   exaggeration=1.0, light=(-0.45, 0.35, 0.82)):
+def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, max_side=None,
+                   exaggeration=1.0, light=(-0.45, 0.35, 0.82), pixel_size=None):
     """Shaded oblique render of ``height`` (H, W) (pixel units, z up), (h, w, 3) uint8.
 
     Parameters
@@ -29,13 +29,17 @@ def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, m
         Only these pixels are drawn (default all finite heights).
     elevation, azimuth : float
         Viewing angle above the horizon and turn of the map about the vertical, degrees.
-    max_side : int
+    max_side : int, optional
         The map is resampled so its longer side is this many pixels, at most twice its
-        own size (heights scaled with it, so proportions are kept).
+        own size (heights scaled with it, so proportions are kept). Default: the map's
+        own side, within 360..1200 px (fine marks of a large map stay visible).
     exaggeration : float
         Vertical exaggeration (1: heights to scale with the image plane).
     light : (3,) float
         Light direction in the turned map's frame (x right, y away, z up).
+    pixel_size : float, optional
+        Micrometres per map pixel: when given, a scale bar in micrometres is drawn (the
+        view is orthographic, so a horizontal screen length is the same at every depth).
     """
     from ._pictures import colorize
 
@@ -54,6 +58,8 @@ def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, m
         h = h[near[0], near[1]]
     h = h - lo
     H, W = h.shape
+    if max_side is None:
+        max_side = min(max(max(H, W), 360), 1200)
     s = min(max_side / max(H, W), 2.0)
     size = (max(2, int(round(W * s))), max(2, int(round(H * s))))
     h = cv2.resize(h, size, interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR) * s
@@ -104,6 +110,10 @@ def height_picture(height, object_mask=None, *, elevation=50.0, azimuth=-30.0, m
     Ws = x1 - x0 + 1 + 2 * margin
     out = np.full((Hs, Ws, 3), 245, np.uint8)
     out[py + margin, cc - x0 + margin] = np.clip(cs, 0, 255).astype(np.uint8)   # far to near
+    if pixel_size is not None:
+        from ._pictures import scale_bar, text_px
+
+        out = scale_bar(out, s / float(pixel_size), size=text_px(max(out.shape[:2])))
     return out
 
 

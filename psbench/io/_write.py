@@ -399,8 +399,9 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
         if pictures:
             from ._relief import height_picture
 
-            save_pic("height.png", P.titled(height_picture(hgt, m),
-                                            "heights integrated from the normals (to scale)"))
+            rel = height_picture(hgt, m, pixel_size=pixel_size)
+            save_pic("height.png", P.titled(rel, "heights integrated from the normals (to scale)",
+                                            size=P.text_px(max(rel.shape[:2]), least=16)))
     return written
 
 

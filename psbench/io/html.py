@@ -30,8 +30,10 @@ import pandas as pd
 __all__ = ["Link", "STATUSES", "write_atomic", "save_figure", "inline_html", "to_markdown",
            "to_html", "write_page"]
 
-STATUSES = ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")
-_STATUS_CLASS = {"SUPPORTED": "st-s", "NOT SUPPORTED": "st-n", "INCONCLUSIVE": "st-i"}
+#: verdict statuses; PROVISIONAL: decided on an incomplete grid (shown only when present)
+STATUSES = ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE", "PROVISIONAL")
+_STATUS_CLASS = {"SUPPORTED": "st-s", "NOT SUPPORTED": "st-n", "INCONCLUSIVE": "st-i",
+                 "PROVISIONAL": "st-p"}
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;font-size:15px;
@@ -51,12 +53,13 @@ td.num,th.num{text-align:right}th[colspan]{text-align:center}
 tbody td:first-child{white-space:nowrap}
 tbody tr:nth-child(even){background:#fafbfc}
 .st-s{color:#0a6b1f;font-weight:700}.st-n{color:#b3001b;font-weight:700}
-.st-i{color:#8a5a00;font-weight:700}
-td.st-s,td.st-n,td.st-i{white-space:nowrap;text-align:left}
+.st-i{color:#8a5a00;font-weight:700}.st-p{color:#5a5a8a;font-weight:700}
+td.st-s,td.st-n,td.st-i,td.st-p{white-space:nowrap;text-align:left}
 .totals{display:flex;gap:.8em;flex-wrap:wrap;margin:.6em 0 1em}
 .badge{border-radius:6px;padding:.45em .9em;font-size:1.15em;font-weight:700;color:#fff}
 .badge .n{font-size:1.5em;margin-right:.3em}
 .badge.st-s{background:#1e7b34}.badge.st-n{background:#b3261e}.badge.st-i{background:#9a6a00}
+.badge.st-p{background:#5a5a8a}
 .badge.all{background:#44505c}
 figure{margin:1em 0}img{max-width:100%;height:auto;border:1px solid #e1e4e8}
 figcaption{font-size:13px;color:#555;margin-top:.3em}
@@ -251,10 +254,15 @@ def _verdict_frame(vs) -> pd.DataFrame:
                          for v in vs], columns=["status", "claim", "psbench's numbers"])
 
 
+def _shown(t: dict) -> list:
+    """Statuses of a totals line: the three decided ones always, PROVISIONAL when held."""
+    return [s for s in STATUSES if s != "PROVISIONAL" or t.get(s, 0)]
+
+
 def _totals_md(t: dict) -> str:
     n = sum(t.get(s, 0) for s in STATUSES)
     return (f"**{n} claim{'' if n == 1 else 's'}: "
-            + " · ".join(f"{t.get(s, 0)} {s}" for s in STATUSES) + "**\n")
+            + " · ".join(f"{t.get(s, 0)} {s}" for s in _shown(t)) + "**\n")
 
 
 def _totals_html(t: dict) -> str:
@@ -262,7 +270,7 @@ def _totals_html(t: dict) -> str:
     badges = [f"<div class='badge all'><span class='n'>{n}</span>claim{'' if n == 1 else 's'}"
               f"</div>"]
     badges += [f"<div class='badge {_STATUS_CLASS[s]}' data-status='{s}'><span class='n'>"
-               f"{t.get(s, 0)}</span>{s}</div>" for s in STATUSES]
+               f"{t.get(s, 0)}</span>{s}</div>" for s in _shown(t)]
     return f"<div class='totals'>{''.join(badges)}</div>"
 
 

@@ -67,7 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._shared.checks import PsbenchError
-from ._interreflect_lobe import lobe as _lobe
+from ._shading import lobe as _lobe
 
 __all__ = ["secondary", "add_bounces", "Specular", "directions", "DEFAULT_SAMPLES", "MODELS"]
 
@@ -163,23 +163,23 @@ def secondary(height, normals, emitted, *, object_mask=None, rho_d=1.0, specular
     H, W = h.shape
     n = np.ascontiguousarray(normals, dtype=np.float32).reshape(H, W, 3)
     E = np.asarray(emitted, dtype=np.float32)
-    mask = np.ones((H, W), bool) if object_mask is None else np.asarray(object_mask, bool)
+    object_mask = np.ones((H, W), bool) if object_mask is None else np.asarray(object_mask, bool)
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 4:
         raise PsbenchError(f"samples must be an integer >= 4, got {samples!r}")
     if bounces not in (1, 2):
         raise PsbenchError(f"bounces must be 1 or 2, got {bounces!r}")
     rho_d = rho_d if np.ndim(rho_d) == 0 else np.asarray(rho_d, np.float32)
-    geo = _Geometry(h, n, mask, int(samples), float(bias))
+    geo = _Geometry(h, n, object_mask, int(samples), float(bias))
     if engine not in (None, "numba", "numpy"):
         raise PsbenchError(f"engine={engine!r} is not known; valid choices: numba, numpy")
     cos1, spec1 = geo.gather(E, specular, engine=engine)
     out = _combine(cos1, spec1, rho_d, specular)
     if bounces == 2:
         emit2 = cos1 * (rho_d if np.ndim(rho_d) == 0 else rho_d[None])
-        emit2 *= mask[None]
+        emit2 *= object_mask[None]
         cos2, spec2 = geo.gather(emit2, specular, emit_specular=False, engine=engine)
         out += _combine(cos2, spec2, rho_d, specular)
-    out *= mask[None]
+    out *= object_mask[None]
     return out
 
 
@@ -246,12 +246,12 @@ class _Shear:
 class _Geometry:
     """Light-independent state of one height field; :meth:`gather` integrates."""
 
-    def __init__(self, h, n, mask, samples, bias):
-        self.h, self.n, self.mask, self.bias = h, n, mask, np.float32(bias)
+    def __init__(self, h, n, object_mask, samples, bias):
+        self.h, self.n, self.object_mask, self.bias = h, n, object_mask, np.float32(bias)
         self.H, self.W = h.shape
         self.az, sin_el, self.w = directions(samples)
         slope = _max_slope(h)
-        nz = np.clip(n[..., 2][mask], -1.0, 1.0) if mask.any() else np.ones(1)
+        nz = np.clip(n[..., 2][object_mask], -1.0, 1.0) if object_mask.any() else np.ones(1)
         tan_zen = float(np.max(np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) / np.maximum(nz, 1e-6)))
         el = np.arcsin(sin_el)
         # rising rays steeper than any slope hit nothing; falling rays steeper than
@@ -265,7 +265,7 @@ class _Geometry:
         inside[pad:-pad, pad:-pad] = True
         self.inside = inside
         self.np_ = np.pad(n, ((pad, pad), (pad, pad), (0, 0)), mode="edge").reshape(-1, 3)
-        self.mp = np.pad(mask.astype(np.float32), pad).ravel()
+        self.mp = np.pad(object_mask.astype(np.float32), pad).ravel()
 
     # -- resampling onto the working grid --------------------------------------------
     def _lerp_index(self, sh, ja, jb):
@@ -409,8 +409,8 @@ def check_bounces(samples, positions, perspective, shadows):
                            "negative light has no interreflection)")
 
 
-def add_bounces(scene, height, mask, normals, *, bounces, samples, noise, seed, model, rho_d,
-                rho_s, m, phong_m):
+def add_bounces(scene, height, object_mask, normals, *, bounces, samples, noise, seed, model,
+                rho_d, rho_s, m, phong_m):
     """Add interreflections to a noiseless, unquantised direct ``scene`` of
     :func:`psbench.render` (arguments validated there; it quantises afterwards).
 
@@ -430,32 +430,32 @@ def add_bounces(scene, height, mask, normals, *, bounces, samples, noise, seed, 
     else:
         diffuse = scene.diffuse
         lit = ~(scene.self_shadow | scene.cast_shadow)
-        lit &= mask[None]
+        lit &= object_mask[None]
         spec = Specular(model, rho_s if np.ndim(rho_s) == 0 else np.asarray(rho_s, np.float32),
                         float(m), float(phong_m), np.asarray(lay.directions, np.float64),
                         np.asarray(lay.power, np.float64), lit)
-    sec = secondary(height, normals, diffuse, object_mask=mask, rho_d=rho_d, specular=spec,
+    sec = secondary(height, normals, diffuse, object_mask=object_mask, rho_d=rho_d, specular=spec,
                     bounces=bounces, samples=samples)
     images += sec
     frac = np.zeros_like(sec)
     np.divide(sec, images, out=frac, where=images > 0)
     k, H, W = images.shape
-    full = bool(mask.all())
+    full = bool(object_mask.all())
     drange = np.zeros(k, np.float32)
     sigma = np.zeros(k, np.float32)
     rng = np.random.default_rng(seed)
     z = np.empty((H, W), np.float32) if noise > 0 else None
     for i in range(k):  # the noise rule of psbench.render, on the total clean image
         img = images[i]
-        hi = float(img.max()) if full else float(np.max(img, where=mask, initial=-np.inf))
-        lo = float(img.min()) if full else float(np.min(img, where=mask, initial=np.inf))
+        hi = float(img.max()) if full else float(np.max(img, where=object_mask, initial=-np.inf))
+        lo = float(img.min()) if full else float(np.min(img, where=object_mask, initial=np.inf))
         drange[i] = hi - lo if np.isfinite(hi) else 0.0
         if z is not None:
             sigma[i] = np.float32(noise * drange[i])
             rng.standard_normal(dtype=np.float32, out=z)
             z *= sigma[i]
             if not full:
-                z *= mask
+                z *= object_mask
             img += z
     out = replace(scene, images=images, noise=float(noise), sigma=sigma, dynamic_range=drange,
                   bounces=int(bounces), _cache={})

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from ._interreflect_lobe import lobe as _lobe
+from ._shading import lobe as _lobe
 
 __all__ = ["run"]
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._interreflect_lobe import lobe as _lobe
+from ._shading import lobe as _lobe
 
 __all__ = ["reference"]
 
@@ -46,10 +46,10 @@ def reference(height, normals, emitted, *, object_mask=None, rho_d=1.0, specular
     n = np.asarray(normals, np.float64).reshape(H, W, 3)
     E = np.asarray(emitted, np.float64)
     k = E.shape[0]
-    mask = np.ones((H, W), bool) if object_mask is None else np.asarray(object_mask, bool)
+    object_mask = np.ones((H, W), bool) if object_mask is None else np.asarray(object_mask, bool)
     xs = np.arange(W) - (W - 1) / 2.0
     ys = (H - 1) / 2.0 - np.arange(H)
-    rr, cc = np.nonzero(mask)
+    rr, cc = np.nonzero(object_mask)
     # emitter sub-samples
     o = (np.arange(sub) + 0.5) / sub - 0.5
     ex = (xs[cc][:, None, None] + o[None, None, :]).repeat(sub, 1).reshape(-1)

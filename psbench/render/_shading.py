@@ -18,7 +18,7 @@ HIGHLIGHT_ANGLE = 12.0
 #: default fraction of the image range of ``highlight="range"``
 HIGHLIGHT_FRACTION = 0.1
 
-__all__ = ["Shader", "highlight_plane", "highlight_rule", "highlight_truth"]
+__all__ = ["Shader", "highlight_plane", "highlight_rule", "highlight_truth", "lobe"]
 
 
 class Shader:
@@ -163,6 +163,20 @@ class Shader:
                 spec[i] = s
                 spec[i][off] = 0.0
         return diff, spec
+
+
+def lobe(model, c, m, phong_m):
+    """Specular lobe from c = n.h (TS) or c = r.v (Phong), in place on float32 c (the
+    interreflection quadratures and their brute-force reference)."""
+    if model == "ts":
+        np.clip(c, -1.0, 1.0, out=c)
+        np.arccos(c, out=c)
+        c *= np.float32(m)
+        np.square(c, out=c)
+        np.negative(c, out=c)
+        return np.exp(c, out=c)
+    np.maximum(c, 0.0, out=c)
+    return np.power(c, np.float32(phong_m), out=c)
 
 
 def highlight_plane(out, spec, cos_h, keep, *, cos_t=None, threshold=None):

@@ -14,9 +14,12 @@ totals and key findings first) and ``report.json``.
 
 Scales: the full-scale report goes to ``<out>/``, the ci-scale one to ``<out>/ci/``. By
 default (``--scale auto``) every scale the store holds is reported; a report that holds
-data is never replaced by an emptier one (another scale, or pages that would say NO
-DATA): the command then stops with a one-line message and exit status 2 and changes
-nothing (``--force`` overrides; see :mod:`psbench.report.scales`). ``--panels``
+data is never replaced by an emptier one: the pages of experiments the store lacks at
+that scale are kept as they are (listed apart on the index), and a store with no run at
+that scale, fewer runs than a page reports, or a folder of another scale stops the
+command with a one-line message and exit status 2, changing nothing (``--force``
+overrides; see :mod:`psbench.report.scales`). A page whose grid is incomplete says so at
+the top (runs present / expected) and its verdicts are PROVISIONAL. ``--panels``
 additionally renders and solves ONE small scene set for the image panels (labelled as
 such; :mod:`psbench.report.panels`). All files are written atomically; corrupt or
 foreign Parquet files are named in a warning and skipped.
@@ -47,6 +50,9 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
     agg = T.aggregate(name, ok)
     cmp = T.compare(name, agg)
     verdicts = V.verdicts(name, agg, ok)
+    grid_runs = T.completeness(name, scale, rows_all, results)
+    if grid_runs and grid_runs[0] < grid_runs[1]:   # missing runs may change any verdict
+        verdicts = V.provisional(verdicts, *grid_runs)
     thesis = [v for v in verdicts if v.thesis]     # the totals count thesis claims only
     size = T.scale_size(name, scale, results)
     figs, errs = F.figures(name, agg, rows=ok)
@@ -56,7 +62,7 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
         save_figure(fig, Path(out) / "figures" / f"{stem}.png", dpi=F.DPI)
         rel.append((f"figures/{stem}.png", stem))
     blocks = G.experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, rel,
-                                 results=results)
+                                 results=results, grid_runs=grid_runs)
     write_page(out, name, blocks, T.title(name))
     write_atomic(Path(out) / "data" / f"{name}.csv", cmp.to_csv(index=False))
     shas = sorted(set(rows_all["git_sha"].dropna())) if "git_sha" in rows_all else []
@@ -66,6 +72,8 @@ def _build_experiment(name, rows_all, out, scale, messages, results):
                    supported=sum(v.status == V.SUPPORTED for v in thesis),
                    not_supported=sum(v.status == V.NOT_SUPPORTED for v in thesis),
                    inconclusive=sum(v.status == V.INCONCLUSIVE for v in thesis),
+                   provisional=sum(v.status == V.PROVISIONAL for v in thesis),
+                   expected=grid_runs[1] if grid_runs else None,
                    own=len(verdicts) - len(thesis))
     return summary, thesis
 
@@ -79,7 +87,8 @@ def _ok_runs(sel) -> dict:
 
 
 def build(results="results", out="reports", scale="full", panels=False, log=print,
-          experiments=None, force=False, _store=None, _warned=False) -> Path:
+          experiments=None, force=False, _store=None, _warned=False,
+          _checked=False) -> Path:
     """Rebuild the ``scale`` report in the folder ``out``; returns ``out/index.html``.
 
     Raises :class:`psbench.report.scales.ReportRefused` before writing anything when
@@ -94,10 +103,13 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
     sel = _selections(df, scale, names, results)
     if not _warned:
         _warn(messages)
-    S.check(out, scale, _ok_runs(sel), results, force=force)
+    if not _checked:
+        S.check(out, scale, _ok_runs(sel), results, force=force)
+    # pages holding runs this store lacks stay as they are (never replaced by NO DATA)
+    kept = {} if force else S.kept(out, _ok_runs(sel))
     out.mkdir(parents=True, exist_ok=True)
     summaries, verdicts_by = [], {}
-    for name in names:
+    for name in (n for n in names if n not in kept):
         s, vs = _build_experiment(name, sel[name], out, scale, messages, results)
         s["in_totals"] = G.in_totals(name)
         summaries.append(s)
@@ -114,16 +126,20 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         scale=scale, size_text=_size_text(summaries, scale),
         provenance=_provenance(df, summaries, results, now),
         summaries=summaries, verdicts_by=verdicts_by, messages=messages, empty=df.empty,
-        other_link=_other_link(out, scale), panels=bool(panel_files),
+        other_link=_other_link(out, scale), panels=bool(panel_files), kept=kept,
         deviations=[(n, getattr(T.experiment_module(n), "NOTES", "")) for n in names
                     if getattr(T.experiment_module(n), "NOTES", "")])
     write_page(out, "index", blocks, f"psbench report ({scale})")
-    write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now))
+    write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now,
+                                              kept))
     all_v = [v for s in summaries if s["in_totals"] for v in verdicts_by[s["experiment"]]]
     log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
         f"{sum(v.status == V.SUPPORTED for v in all_v)} SUPPORTED, "
         f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "
-        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE)")
+        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE"
+        + (f", {n_prov} PROVISIONAL" if (n_prov := sum(v.status == V.PROVISIONAL
+                                                      for v in all_v)) else "") + ")"
+        + (f"; kept the pages of {', '.join(kept)} (runs this store lacks)" if kept else ""))
     return out / "index.html"
 
 
@@ -197,7 +213,7 @@ def build_all(results="results", out="reports", scale="auto", panels=False, log=
     # ci first, so that the full index can link to it
     order = sorted(targets, key=lambda s: s == "full")
     return [build(results, S.folder(out, s), s, panels=panels and s == with_panels, log=log,
-                  force=True, _store=store, _warned=True) for s in order]
+                  force=force, _store=store, _warned=True, _checked=True) for s in order]
 
 
 def main(argv=None) -> int:
@@ -208,6 +224,7 @@ def main(argv=None) -> int:
                                  description="Rebuild the thesis reports from the results "
                                              "store alone (never solves).",
                                  epilog="Full-scale report in OUT/, ci-scale report in OUT/ci/; "
+                                        "pages of experiments the store lacks are kept, and "
                                         "a report holding data is never replaced by an "
                                         "emptier one (exit 2) unless --force.")
     ap.add_argument("--results", default=None,
@@ -219,7 +236,8 @@ def main(argv=None) -> int:
     ap.add_argument("--panels", action="store_true",
                     help="also render+solve one small scene set for the image panels")
     ap.add_argument("--force", action="store_true",
-                    help="replace a report even if it holds data the store lacks")
+                    help="replace a report even if it holds data the store lacks (its "
+                         "kept pages become NO DATA pages)")
     a = ap.parse_args(argv)
     from psbench.harness.store import default_root
 

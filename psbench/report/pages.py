@@ -120,15 +120,22 @@ def _comparison_blocks(name, cmp) -> list:
 
 
 def experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, figs,
-                      results=None) -> list:
-    """Blocks of one experiment's page; ``figs`` = ``[(relpath, stem), ...]``."""
+                      results=None, grid_runs=None) -> list:
+    """Blocks of one experiment's page; ``figs`` = ``[(relpath, stem), ...]``;
+    ``grid_runs`` = ``(present, expected)`` runs of the current grid (None: unknown)."""
     mod = T.experiment_module(name)
     ok = rows_all[rows_all["status"] == "ok"] if not rows_all.empty else rows_all
     failed = rows_all[rows_all["status"] != "ok"] if not rows_all.empty else rows_all
     desc = str(T.grid(name, results).get("description", "") or "").strip()
     notes = getattr(mod, "NOTES", "")
-    blocks = [("h1", T.title(name)),
-              ("p", f"Experiment `{name}`, scale `{scale}`"
+    blocks = [("h1", T.title(name))]
+    if grid_runs and grid_runs[0] < grid_runs[1]:
+        blocks.append(("p", f"**INCOMPLETE GRID: {grid_runs[0]} of {grid_runs[1]} runs "
+                            f"present.** Every verdict below is PROVISIONAL (decided on the "
+                            f"runs present; the missing ones may change it) and the means "
+                            f"cover only these runs. Run `psbench +experiment={name} "
+                            f"scale={scale}` to complete the grid (stored runs are skipped)."))
+    blocks += [("p", f"Experiment `{name}`, scale `{scale}`"
                     + (f" (image size {size} x {size}; the thesis used 512 x 512)" if size else "")
                     + "." + (f" {desc}" if desc else "")),
               ("p", f"Runs: {len(ok)} ok, {len(failed)} failed (of {len(rows_all)} stored at "
@@ -185,8 +192,9 @@ def _findings(summaries, verdicts_by) -> pd.DataFrame:
 
 
 def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messages,
-                 empty, other_link, panels, deviations) -> list:
-    """Blocks of ``index`` for one scale."""
+                 empty, other_link, panels, deviations, kept=None) -> list:
+    """Blocks of ``index`` for one scale; ``kept``: ``{experiment: entry}`` of the pages
+    left from an earlier build (:func:`psbench.report.scales.kept`)."""
     all_v = [v for vs in verdicts_by.values() for v in vs]
     # experiments that re-decide other pages' claims (IN_TOTALS = False, e.g. the matrix of
     # readings) are listed but not counted again in the totals
@@ -198,25 +206,45 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
         blocks.append(("p", f"**THE RESULTS STORE IS EMPTY**: no runs were found, so every "
                             f"table below is empty and every verdict INCONCLUSIVE. Run e.g. "
                             f"`psbench +experiment=table5_3 scale={scale}` first."))
+    partial = [f"{s['experiment']} ({s['ok']} of {s['expected']} runs)" for s in summaries
+               if s.get("expected") and s["ok"] < s["expected"]]
+    if partial:
+        blocks.append(("p", f"**INCOMPLETE GRIDS: {', '.join(partial)}.** Their verdicts are "
+                            f"PROVISIONAL (decided on the runs present) until their grids are "
+                            f"complete."))
     blocks += [("h2", "Verdicts at a glance"),
                ("p", "Each page decides the thesis's qualitative conclusions on psbench's "
                      "numbers: SUPPORTED, NOT SUPPORTED, or INCONCLUSIVE (no data, or a gap "
                      "below its margin)."),
                ("totals", tot)]
+    cols = ["experiment", "thesis item", "ok runs", V.SUPPORTED, V.NOT_SUPPORTED,
+            V.INCONCLUSIVE] + ([V.PROVISIONAL] if tot.get(V.PROVISIONAL) else [])
+    keys = {V.SUPPORTED: "supported", V.NOT_SUPPORTED: "not_supported",
+            V.INCONCLUSIVE: "inconclusive", V.PROVISIONAL: "provisional"}
     per = pd.DataFrame([{
         "experiment": Link(s["experiment"], f"{s['experiment']}.html"),
-        "thesis item": T.title(s["experiment"]), "ok runs": s["ok"],
-        "SUPPORTED": s["supported"], "NOT SUPPORTED": s["not_supported"],
-        "INCONCLUSIVE": s["inconclusive"]} for s in summaries],
-        columns=["experiment", "thesis item", "ok runs", "SUPPORTED", "NOT SUPPORTED",
-                 "INCONCLUSIVE"])
+        "thesis item": T.title(s["experiment"]),
+        "ok runs": s["ok"] if not s.get("expected") or s["ok"] >= s["expected"]
+        else f"{s['ok']} of {s['expected']} (incomplete grid)",
+        **{c: s.get(k, 0) for c, k in keys.items()}} for s in summaries], columns=cols)
     if len(per):
-        per.loc[len(per)] = ["total", "", sum(s["ok"] for s in summaries), tot[V.SUPPORTED],
-                             tot[V.NOT_SUPPORTED], tot[V.INCONCLUSIVE]]
+        per.loc[len(per)] = ["total", "", sum(s["ok"] for s in summaries)] + \
+            [tot.get(c, 0) for c in cols[3:]]
     left = [s["experiment"] for s in summaries if not in_totals(s["experiment"])]
     blocks.append(("table", per, "verdicts per experiment (click a name for its page)"
                    + (f"; the total leaves out {', '.join(left)}, which re-decides the "
                       "other pages' claims under alternative readings" if left else "")))
+    if kept:
+        blocks += [("p", f"Pages kept from an earlier build ({len(kept)}): this store holds no "
+                         f"{scale}-scale run of them, so their pages were left as they were "
+                         f"(their numbers come from another store, and are not in the totals "
+                         f"above); `--force` replaces them."),
+                   ("table", pd.DataFrame([{
+                       "experiment": Link(n, f"{n}.html"), "thesis item": T.title(n),
+                       "ok runs": e.get("runs", 0), V.SUPPORTED: e.get(V.SUPPORTED, 0),
+                       V.NOT_SUPPORTED: e.get(V.NOT_SUPPORTED, 0),
+                       V.INCONCLUSIVE: e.get(V.INCONCLUSIVE, 0)} for n, e in kept.items()]),
+                    "pages kept from an earlier build")]
     blocks += [("h2", "Key findings"),
                ("p", "The main conclusion of each table and figure (the first claim on its "
                      "page) and what psbench's runs say about it; claims psbench does not "

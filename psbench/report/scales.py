@@ -6,8 +6,9 @@ holds one scale: the full-scale report in ``<out>/`` and the ci-scale one in
 (:func:`held`) and never replaces a report that has data with one that has less:
 
 - a folder holding a report of another scale is not overwritten;
-- a page that reports runs is not replaced by a "NO DATA" page (the store lacks that
-  experiment at that scale) unless ``force``.
+- a page that reports runs is not replaced by a "NO DATA" page: when the store lacks
+  that experiment at that scale, the page is kept as it is (:func:`kept`, listed apart
+  on the index) unless ``force``; a store with no run at that scale at all is refused.
 
 Every build leaves ``report.json`` (scale, runs and verdict counts per experiment) that
 :func:`existing` reads back; reports written before it existed are recognized from their
@@ -26,7 +27,7 @@ from psbench._shared.checks import PsbenchError
 from . import tables as T
 
 __all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
-           "manifest"]
+           "manifest", "kept"]
 
 SCALES = ("full", "ci")
 MANIFEST = "report.json"
@@ -111,6 +112,42 @@ def _runs_by_experiment(folder_) -> dict:
         return {}
 
 
+_TOTALS = re.compile(r"\*\*\d+ claims?: (\d+) SUPPORTED · (\d+) NOT SUPPORTED · "
+                     r"(\d+) INCONCLUSIVE")
+_VERDICT_LINE = re.compile(r"^(?:- \*\*|\| )(SUPPORTED|NOT SUPPORTED|INCONCLUSIVE)(?:\*\*| \|)",
+                           re.MULTILINE)
+
+
+def _page_entry(page: Path) -> dict:
+    """Runs and verdict counts of a page written without a manifest entry."""
+    text = page.read_text(errors="replace") if page.is_file() else ""
+    r, t = re.search(r"Runs: (\d+) ok", text), _TOTALS.search(text)
+    if t:
+        counts = [int(x) for x in t.groups()]
+    else:                         # older pages: one "- **STATUS** — claim" line per verdict
+        found = _VERDICT_LINE.findall(text)
+        counts = [found.count(k) for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")]
+    return {"runs": int(r.group(1)) if r else 0,
+            **dict(zip(("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"), counts))}
+
+
+def kept(folder_, runs: dict) -> dict:
+    """``{experiment: entry}``: pages of the report in ``folder_`` that hold runs the store
+    lacks (``runs[experiment] == 0``); the build leaves them as they are. ``entry`` holds
+    their runs and verdict counts (from the manifest, else read from the page) and
+    ``kept: True``."""
+    old = existing(folder_)
+    if not old:
+        return {}
+    try:
+        exps = json.loads((Path(folder_) / MANIFEST).read_text()).get("experiments") or {}
+    except (OSError, ValueError, TypeError, AttributeError):
+        exps = {}
+    return {n: {**(exps.get(n) or _page_entry(Path(folder_) / f"{n}.md")), "kept": True}
+            for n in sorted(old["with_data"]) if n in runs and runs[n] == 0
+            and (Path(folder_) / f"{n}.md").is_file()}
+
+
 def _names(xs, k=4):
     xs = sorted(xs)
     return ", ".join(xs[:k]) + (f" and {len(xs) - k} more" if len(xs) > k else "")
@@ -136,12 +173,6 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"psbench-report: refusing to overwrite {where} ({old['scale'] or scale}-scale "
             f"report, {old['runs']} runs): the store {results} holds no {scale}-scale runs; "
             f"run `psbench +experiment=NAME scale={scale}` first, or --force")
-    if lost:
-        raise ReportRefused(
-            f"psbench-report: refusing to overwrite {where}: its {scale}-scale report has runs "
-            f"of {len(lost)} experiment(s) the store {results} lacks at that scale "
-            f"({_names(lost)}); run `psbench +experiment=NAME scale={scale}` for them, use "
-            f"--out another folder, or --force")
     fewer = {n: (k, runs[n]) for n, k in _runs_by_experiment(folder_).items()
              if n in runs and 0 < runs[n] < k}
     if fewer:                    # e.g. a corrupt store file: never rebuild from fewer rows
@@ -153,15 +184,23 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"kept: rerun the experiments to resume, or --force")
 
 
-def manifest(scale, results, summaries, generated) -> str:
-    """Text of ``report.json``: the scale and, per experiment, runs and verdict counts."""
+def manifest(scale, results, summaries, generated, kept_=None) -> str:
+    """Text of ``report.json``: the scale and, per experiment, runs and verdict counts
+    (``kept_``: entries of the pages left from an earlier build, :func:`kept`)."""
     exps = {s["experiment"]: {"runs": int(s["ok"]), "failed": int(s["failed"]),
                               "SUPPORTED": int(s["supported"]),
                               "NOT SUPPORTED": int(s["not_supported"]),
-                              "INCONCLUSIVE": int(s["inconclusive"])} for s in summaries}
+                              "INCONCLUSIVE": int(s["inconclusive"]),
+                              "expected": s.get("expected")} for s in summaries}
+    for s in summaries:          # verdicts of an incomplete grid (absent when complete)
+        if s.get("provisional"):
+            exps[s["experiment"]]["PROVISIONAL"] = int(s["provisional"])
+    exps.update(kept_ or {})
     counted = [s["experiment"] for s in summaries if s.get("in_totals", True)]
     tot = {k: sum(exps[n][k] for n in counted)
            for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")}
+    if any(exps[n].get("PROVISIONAL") for n in counted):
+        tot["PROVISIONAL"] = sum(exps[n].get("PROVISIONAL", 0) for n in counted)
     return json.dumps({"scale": scale, "store": str(results), "generated": generated,
                        "verdicts": tot, "in_totals": counted, "experiments": exps},
                       indent=1) + "\n"

@@ -20,6 +20,7 @@ import functools
 import os
 import re
 import warnings
+from pathlib import Path
 
 import pandas as pd
 
@@ -74,7 +75,19 @@ def _cache_key(name, results):
     except (PsbenchError, OSError):
         path, mtime = None, None
     env = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("PSBENCH")))
-    return name, str(results), str(path), mtime, env
+    # a grid that never names the store resolves the same for every store: one cache entry
+    store = str(results) if _names_store(str(path), mtime) else "None"
+    return name, store, str(path), mtime, env
+
+
+@functools.lru_cache(maxsize=256)
+def _names_store(path, mtime) -> bool:
+    """Whether the grid file at ``path`` interpolates ``results_dir`` (``mtime``: cache
+    key only)."""
+    try:
+        return "results_dir" in Path(path).read_text()
+    except OSError:
+        return True
 
 
 @functools.lru_cache(maxsize=256)
@@ -129,6 +142,18 @@ def expected_run_ids(experiment: str, scale: str, results=None) -> frozenset | N
     """run_ids of the current definition of ``experiment`` at ``scale`` (None if the grid
     cannot be expanded here). Cached like :func:`grid`."""
     return _run_ids(_cache_key(experiment, results), scale)
+
+
+def completeness(experiment: str, scale: str, rows: pd.DataFrame, results=None):
+    """``(present, expected)``: ok runs of ``rows`` in the current grid at ``scale`` and
+    the grid's size; None when it cannot be told (the grid cannot be expanded here, or no
+    row matches its run ids, e.g. paths expanded from another folder)."""
+    ids = expected_run_ids(experiment, scale, results)
+    if not ids or rows is None or rows.empty or "run_id" not in rows:
+        return None
+    ok = rows[rows["status"] == "ok"] if "status" in rows else rows
+    present = int(ok.loc[ok["run_id"].isin(ids), "run_id"].nunique())
+    return (present, len(ids)) if present else None
 
 
 @functools.lru_cache(maxsize=256)

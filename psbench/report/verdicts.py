@@ -38,9 +38,12 @@ import pandas as pd
 __all__ = ["SUPPORTED", "NOT_SUPPORTED", "INCONCLUSIVE", "NE_MARGIN", "QF_MARGIN", "Verdict",
            "verdict", "nodata", "lowest", "rank", "part_values", "slope", "ok", "num",
            "verdicts", "margin_for", "spread", "decide", "by_seed", "seed_part_values",
-           "quoted", "own", "own_questions", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau"]
+           "quoted", "own", "own_questions", "all_hold", "every", "ranked", "PCT_MARGIN", "plateau",
+           "PROVISIONAL", "provisional"]
 
 SUPPORTED, NOT_SUPPORTED, INCONCLUSIVE = "SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"
+#: the status of every verdict decided on an incomplete grid (:func:`provisional`)
+PROVISIONAL = "PROVISIONAL"
 NE_MARGIN = 0.1  # degrees: NE differences below this are not decided
 QF_MARGIN = 0.01  # quality factor (0..1) differences below this are not decided
 PCT_MARGIN = 1.0  # percentage points (improvements in %) below this are not decided
@@ -126,6 +129,15 @@ def own_questions(func):
     def wrapper(*args, **kwargs):
         return [own(v) for v in func(*args, **kwargs)]
     return wrapper
+
+
+def provisional(vs, present: int, expected: int) -> list:
+    """``vs`` decided on ``present`` of the ``expected`` runs of a grid: each status
+    becomes PROVISIONAL and its detail says what it reads so far, since the missing runs
+    may change it."""
+    return [dataclasses.replace(v, status=PROVISIONAL,
+                                detail=f"{v.status} so far, on {present} of {expected} runs: "
+                                       f"{v.detail}") for v in vs]
 
 
 def quoted(v: Verdict, quote: str) -> Verdict:

@@ -22,6 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ._sym3 import HELDOUT_RCOND, inv_sym3
 from .methods.tsfit._kernel import _acos, _expm, _light
 
 __all__ = ["lambert_errors", "ts_errors", "LEVER"]
@@ -30,23 +31,6 @@ __all__ = ["lambert_errors", "ts_errors", "LEVER"]
 BLOCK = 256
 #: smallest 1 - h_i for which the held-out error is defined
 LEVER = 1e-3
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _inv3(a00, a01, a02, a11, a12, a22):
-    """Inverse of a symmetric 3 x 3 matrix as its 6 unique entries (ok=False: singular
-    relative to its trace)."""
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    tr = a00 + a11 + a22
-    ok = det > 1e-9 * tr * tr * tr and tr > 0.0
-    inv = 1.0 / det if ok else 0.0
-    return c00 * inv, c01 * inv, c02 * inv, c11 * inv, c12 * inv, c22 * inv, ok
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -77,7 +61,8 @@ def lambert_errors(I, S, w, out):
                     r0 += v * sx
                     r1 += v * sy
                     r2 += v * sz
-            b00, b01, b02, b11, b12, b22, ok = _inv3(a00, a01, a02, a11, a12, a22)
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
+                                                              HELDOUT_RCOND)
             if not ok:
                 for i in range(k):
                     out[i, p] = np.nan
@@ -143,7 +128,8 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
                     a11 += wi * jy * jy
                     a12 += wi * jy * jz
                     a22 += wi * jz * jz
-            b00, b01, b02, b11, b12, b22, ok = _inv3(a00, a01, a02, a11, a12, a22)
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
+                                                              HELDOUT_RCOND)
             for i in range(k):
                 wi = float(w[i, p])
                 if wi > 0.0:

@@ -173,7 +173,7 @@ def finish(ctx, b, valid, weights, *, timer, name, method, iterations, info, wan
     height = None
     if want_height:
         from ..integrate.poisson import integrate
-        height = np.asarray(integrate(normals, object_mask=ctx.region, method=ctx.options.integrate_method),
+        height = np.asarray(integrate(normals, object_mask=ctx.region, integrator=ctx.options.integrator),
                             dtype=np.float32)
         timer.lap("height")
     kw = dict(normals=normals, albedo=albedo, valid=valid, weights=weights, residual=resid,

@@ -142,7 +142,7 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
     weight, binary
         Options of the methods that have them ("wps"); ignored by the others.
     want_height : bool
-        Integrate the final normals (``integrate_method``) into ``Result.height``.
+        Integrate the final normals (``integrator``) into ``Result.height``.
     truth_normals : (H, W, 3), optional
         Only for diagnostics: records the mean normal error per round in ``info["ne"]``.
     th_scope : {"image", "object", "robust", "pixel"}
@@ -153,8 +153,8 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         and the method's own): ``dilate_radius`` (7), ``smooth_sigma`` (3),
         ``kernel_size`` (15), ``sigma_min`` (None = 1 % of the mean dynamic range),
         ``th_offset`` (False: literal Eq. 3.2; True: Th bounds offset by i_min),
-        ``sh_bias`` (shadow-map bias, None = shadowmap default), ``integrate_method``
-        ("poisson"), ``n_subsets`` (RA), ``iter_tol`` (1e-3: also stop after a round that
+        ``sh_bias`` (shadow-map bias, None = shadowmap default), ``integrator``
+        ("poisson"; formerly ``integrate_method``), ``n_subsets`` (RA), ``iter_tol`` (1e-3: also stop after a round that
         changed the mask of at most this fraction of the object pixels; 0: iterate
         until no mask changes, a cycle, or ``max_iter``); "fwlse": ``fwlse_tol``;
         "wps": ``z_scale``. Unknown names are refused, listing the valid ones. With Sh

@@ -114,6 +114,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from .._shared.checks import PsbenchError
+from .._shared.deprecation import warn_renamed
 
 __all__ = ["Options", "Problem", "Fit", "Context", "Lazy", "check_int", "check_number",
            "check_choice", "check_bool"]
@@ -192,6 +193,10 @@ def check_choice(value, valid, name):
     return value
 
 
+#: renamed options: old name -> new name (the old one warns, for one release)
+RENAMED_OPTIONS = {"integrate_method": "integrator"}
+
+
 @dataclass
 class Options:
     """Options of the mask engine, shared by every masked method.
@@ -211,8 +216,9 @@ class Options:
         Offset the Th bounds by i_min (False: literal Eq. 3.2).
     sh_bias : float or None
         Shadow-map bias of the Sh mask (None: the shadow map's default).
-    integrate_method : {"poisson", "fc"}
-        Integrator used by Sh and ``want_height``.
+    integrator : {"poisson", "fc"}
+        Integrator used by Sh and ``want_height`` (formerly ``integrate_method``, which
+        :meth:`build` and :func:`psbench.solve` still accept, with a warning).
     n_subsets : int or None
         Triplets drawn by RA (None: Eq. 3.11).
     weighted : bool
@@ -248,7 +254,7 @@ class Options:
     th_scope: str = "image"
     th_offset: bool = False
     sh_bias: float | None = None
-    integrate_method: str = "poisson"
+    integrator: str = "poisson"
     n_subsets: int | None = None
     weighted: bool = False
     dilate_radius: int = 7
@@ -272,7 +278,7 @@ class Options:
         check_choice(self.th_scope, ("image", "object", "robust", "pixel"), "th_scope")
         check_bool(self.th_offset, "th_offset")
         check_number(self.sh_bias, "sh_bias", allow_none=True)
-        check_choice(self.integrate_method, ("poisson", "fc"), "integrate_method")
+        check_choice(self.integrator, ("poisson", "fc"), "integrator")
         if self.n_subsets is not None:
             check_int(self.n_subsets, "n_subsets", lo=1)
         check_bool(self.weighted, "weighted")
@@ -295,10 +301,22 @@ class Options:
     def names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
 
+    @property
+    def integrate_method(self):
+        """Deprecated name of :attr:`integrator`."""
+        warn_renamed("Options.integrate_method", "Options.integrator")
+        return self.integrator
+
     @classmethod
     def build(cls, values: dict | None = None, *, method: str = ""):
         """Options from a dict; unknown names are refused, listing the valid ones."""
         values = dict(values or {})
+        for old, new in RENAMED_OPTIONS.items():
+            if old in values:
+                if new in values:
+                    raise PsbenchError(f"options {old} (deprecated) and {new} both given")
+                warn_renamed(f"the option {old}", new, stacklevel=4)
+                values[new] = values.pop(old)
         bad = [k for k in values if k not in cls.__dataclass_fields__]
         if bad:
             who = f"method {method!r}" if method else cls.__name__

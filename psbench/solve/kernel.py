@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._sym3 import sym3_cofactors, sym3_solve
+
 __all__ = ["wls", "ls", "split", "lambert", "residuals", "residual_norm", "ls_residual_norm",
            "complete_three", "sym3_cofactors", "CHUNK"]
 
@@ -97,33 +99,8 @@ def _pow2(scale) -> float:
     return 1.0 if e == 0 else float(2.0 ** -e)
 
 
-def sym3_cofactors(a):
-    """Cofactors, determinant and non-singularity of symmetric 3x3 matrices.
-
-    ``a`` holds the six unique entries (xx, xy, xz, yy, yz, zz), each an array over
-    pixels. Returns ``(c00, c01, c02, c11, c12, c22), det, ok`` where ``ok`` is
-    |det| > 1e-6 trace^3 (the adjugate divided by ``det`` is the inverse)."""
-    a00, a01, a02, a11, a12, a22 = a
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    tr = a00 + a11 + a22
-    ok = np.abs(det) > 1e-6 * tr * tr * tr
-    return (c00, c01, c02, c11, c12, c22), det, ok
-
-
 def _solve_sym3(a, r, fallback):
-    (c00, c01, c02, c11, c12, c22), det, ok = sym3_cofactors(a)
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0).astype(np.float32)
-    r0, r1, r2 = r
-    x = np.empty((r.shape[1], 3), dtype=np.float32)
-    x[:, 0] = (c00 * r0 + c01 * r1 + c02 * r2) * inv
-    x[:, 1] = (c01 * r0 + c11 * r1 + c12 * r2) * inv
-    x[:, 2] = (c02 * r0 + c12 * r1 + c22 * r2) * inv
+    x, ok, _, _ = sym3_solve(a, r)
     if not ok.all():
         bad = ~ok
         x[bad] = fallback[:, bad].T

@@ -57,7 +57,8 @@ def main(argv=None):
     """Console script ``psbench-surfaces``: write preview PNGs of the named surfaces."""
     import argparse
 
-    names = registry.names("surfaces")
+    # one preview per surface: an alias (another name of the same spec) adds none
+    names = [n for n in registry.names("surfaces") if registry.get("surfaces", n).name == n]
     parser = argparse.ArgumentParser(
         prog="psbench-surfaces",
         description="Write preview PNGs (height colour map + Lambert shading) of psbench surfaces.")

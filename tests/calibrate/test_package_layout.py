@@ -1,4 +1,4 @@
-"""calibrate is maths / folder steps / command; io depends on the maths only."""
+"""calibrate is maths / folder steps / command, above io; io never imports calibrate (the\nCalibration record and its application live in io._calibration)."""
 from __future__ import annotations
 
 import ast
@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 PKG = Path(__file__).resolve().parents[2] / "psbench"
-MATHS = {"psbench.calibrate._fit", "psbench.calibrate._calibration"}
 
 
 def _imports(path, module):
@@ -35,22 +34,21 @@ def _module(path):
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def test_io_uses_only_the_calibration_maths():
+def test_io_does_not_import_calibrate():
     for path in (PKG / "io").glob("*.py"):
         used = {m for m in _imports(path, _module(path)) if m.startswith("psbench.calibrate")}
-        # "psbench.calibrate" itself appears only as the parent of a maths module
-        assert used - {"psbench.calibrate"} <= MATHS | {f"{m}.{n}" for m in MATHS
-                                                        for n in ("Calibration",
-                                                                  "apply_calibration")}, path
+        assert used == set(), path
 
 
-@pytest.mark.parametrize("name", ["_fit.py", "_calibration.py"])
-def test_calibration_maths_does_no_io(name):
+def test_calibration_maths_does_no_io():
+    name = "_fit.py"
     path = PKG / "calibrate" / name
     used = _imports(path, _module(path))
+    # the record and the corrections it applies come from io._calibration; nothing else of io
     assert not {m for m in used if m.startswith(("psbench.io", "psbench.calibrate._steps",
                                                  "psbench.calibrate._cli",
-                                                 "psbench._shared.files"))}
+                                                 "psbench._shared.files"))
+                and not m.startswith("psbench.io._calibration")}
     src = path.read_text()
     for call in ("open(", "np.save", "np.load", "imread", "imwrite", "json."):
         assert call not in src, f"{name} calls {call}"
@@ -64,12 +62,18 @@ def _loaded_after(stmt):
 
 def test_runtime_imports_are_one_way():
     io_mods = _loaded_after("import psbench.io")
-    assert MATHS <= io_mods
-    assert not {"psbench.calibrate._steps", "psbench.calibrate._cli"} & io_mods
+    assert not {m for m in io_mods if m.startswith("psbench.calibrate")}
     cal_mods = _loaded_after("import psbench.calibrate")
-    assert "psbench.io" not in cal_mods
-    both = _loaded_after("from psbench.calibrate import main, calibrate_folder, load_calibration")
-    assert {"psbench.io", "psbench.calibrate._steps", "psbench.calibrate._cli"} <= both
+    assert {"psbench.io", "psbench.calibrate._steps", "psbench.calibrate._cli"} <= cal_mods
+
+
+def test_one_calibration_record():
+    import psbench.calibrate as cal
+    import psbench.io as io
+    from psbench.io import _calibration
+    assert cal.Calibration is _calibration.Calibration
+    assert cal.apply_calibration is _calibration.apply_calibration
+    assert cal.load_calibration is io.load_calibration
 
 
 def test_command_entry_point_unchanged():

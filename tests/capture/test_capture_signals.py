@@ -14,17 +14,19 @@ _BIN = Path(sys.executable).parent / "psbench-capture"
 
 
 def _start(tmp_path, out="cap"):
-    # 768 px: a capture of several seconds, so the signal lands mid-capture and not
-    # after the last frame (a 256 px capture ends about a second after its folder appears)
+    """A capture frozen (SIGSTOP) mid-capture, once its first LED frame is written: a
+    signal sent now lands mid-capture however loaded the machine is (a capture left
+    running could reach its last frame before the signal arrives)."""
     proc = subprocess.Popen([str(_BIN), "rig=sim", "size=768", f"out={out}", "progress=false"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     t0 = time.time()
-    while time.time() - t0 < 60 and not list(tmp_path.glob(f".{out}.partial-*")):
+    while time.time() - t0 < 180 and not list(tmp_path.glob(f".{out}.partial-*/001.png")):
         assert proc.poll() is None, proc.communicate()
-        time.sleep(0.05)
-    assert list(tmp_path.glob(f".{out}.partial-*")), "the capture never started writing"
-    time.sleep(0.3)
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGSTOP)
+    assert list(tmp_path.glob(f".{out}.partial-*/001.png")), "the capture never wrote a frame"
+    assert proc.poll() is None and not (tmp_path / out).exists(), "the capture ended already"
     return proc
 
 
@@ -32,7 +34,8 @@ def _start(tmp_path, out="cap"):
 def test_signal_turns_the_leds_off_and_removes_the_partial_folder(tmp_path, sig):
     proc = _start(tmp_path)
     proc.send_signal(getattr(signal, sig))
-    out, err = proc.communicate(timeout=60)
+    proc.send_signal(signal.SIGCONT)
+    out, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert lines == [f"psbench-capture: interrupted ({sig}); LEDs off (STATE? 0 0 0 0 0 0 0 0); "

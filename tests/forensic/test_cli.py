@@ -178,11 +178,14 @@ def test_compare_resamples_and_says_so(tmp_path, capsys, monkeypatch):
     a = io.write_x3p(tmp_path / "a.x3p", z, pixel_size=6.25)
     b = io.write_x3p(tmp_path / "fine.x3p", fine, pixel_size=3.125)
     monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("PSBENCH_RESULTS", raising=False)
     code, out, err = _run(capsys, "compare", str(a), str(b))
     assert code == 0, err
     assert "fine.x3p (3.125 um per pixel) resampled to 6.25 um per pixel" in err
     assert "(match)" in out and "pixel 6.25 um" in out
-    assert (tmp_path / "a_vs_fine_cmc.png").is_file()  # the default picture
+    # the default picture: under the results folder, not in the working folder
+    assert (tmp_path / "results" / "out" / "compare" / "a_vs_fine_cmc.png").is_file()
+    assert not list(tmp_path.glob("*.png"))
 
 
 @pytest.mark.slow

@@ -42,7 +42,7 @@ def _err(h, z, region):
 def test_hemisphere_depth_within_one_percent(method, use_mask):
     R = 60.0
     n, z, disc, interior = _hemisphere(R=R)
-    h = integrate(n, object_mask=disc if use_mask else None, method=method)
+    h = integrate(n, object_mask=disc if use_mask else None, integrator=method)
     assert h.dtype == np.float32 and h.shape == z.shape
     rms, mx = _err(h, z, interior)
     # max abs error over the interior (r < 0.9 R), up to a constant: < 1 % of height
@@ -53,7 +53,7 @@ def test_hemisphere_depth_within_one_percent(method, use_mask):
 def test_hemisphere_fc():
     R = 60.0
     n, z, disc, interior = _hemisphere(R=R)
-    h = integrate(n, method="fc")
+    h = integrate(n, integrator="fc")
     rms, mx = _err(h, z, interior)
     assert mx < 0.01 * R, (rms, mx)
 
@@ -66,11 +66,11 @@ def test_fc_smooth_periodic_surface():
     z = a * np.sin(kx * x) * np.cos(ky * y)
     p = a * kx * np.cos(kx * x) * np.cos(ky * y)
     q = -a * ky * np.sin(kx * x) * np.sin(ky * y)
-    h = integrate(_normals_from_grad(p, q), method="fc", datum="mean")
+    h = integrate(_normals_from_grad(p, q), integrator="fc", datum="mean")
     rms, mx = _err(h, z, np.ones((H, W), bool))
     assert mx < 0.01 * 2 * a, (rms, mx)
     # the Poisson solver agrees on the same surface
-    h2 = integrate(_normals_from_grad(p, q), method="poisson")
+    h2 = integrate(_normals_from_grad(p, q), integrator="poisson")
     assert _err(h2, z, np.ones((H, W), bool))[1] < 0.01 * 2 * a
 
 
@@ -80,7 +80,7 @@ def test_plane_tilt_recovered(method):
     x, y = _grid(H, W)
     p, q = 0.3, -0.2
     z = p * x + q * y
-    h = integrate(_normals_from_grad(np.full((H, W), p), np.full((H, W), q)), method=method)
+    h = integrate(_normals_from_grad(np.full((H, W), p), np.full((H, W), q)), integrator=method)
     rms, mx = _err(h, z, np.ones((H, W), bool))
     # the discrete Poisson solvers are exact on a plane; Frankot-Chellappa's
     # continuous-frequency derivative rings slightly at the mirror folds (~0.2 %)
@@ -99,8 +99,8 @@ def test_mask_ignores_garbage_outside(method):
     bad = n.copy()
     g = rng.normal(size=bad.shape).astype(np.float32)
     bad[~disc] = g[~disc]  # random, some back-facing, outside the object
-    h_good = integrate(n, object_mask=disc, method=method)
-    h_bad = integrate(bad, object_mask=disc, method=method)
+    h_good = integrate(n, object_mask=disc, integrator=method)
+    h_bad = integrate(bad, object_mask=disc, integrator=method)
     np.testing.assert_allclose(h_bad, h_good, atol=1e-3)
     assert np.all(h_bad[~disc] == 0)
 
@@ -123,7 +123,7 @@ def test_tilted_disc_under_mask_exact(method):
     disc = x ** 2 + y ** 2 < 35 ** 2
     p, q = 0.5, -0.3
     n = _normals_from_grad(np.full((H, W), p), np.full((H, W), q))
-    h = integrate(n, object_mask=disc, method=method)
+    h = integrate(n, object_mask=disc, integrator=method)
     rms, mx = _err(h, p * x + q * y, disc)
     assert mx < 1e-3, mx
 
@@ -134,7 +134,7 @@ def test_membrane_bias_of_poisson_dct():
     x, y = _grid(H, W)
     disc = x ** 2 + y ** 2 < 35 ** 2
     n = _normals_from_grad(np.full((H, W), 0.5), np.zeros((H, W)))
-    h = integrate(n, object_mask=disc, method="poisson-dct")
+    h = integrate(n, object_mask=disc, integrator="poisson-dct")
     slope = np.polyfit(x[disc], h[disc], 1)[0]
     assert 0.3 < slope < 0.49
 
@@ -145,8 +145,8 @@ def test_poisson_matches_sparse_on_noisy_masked_normals():
     m = disc.copy()
     m[40:50, 45:] = False  # notch cut into the disc
     noisy = n + 0.1 * rng.normal(size=n.shape).astype(np.float32)
-    a = integrate(noisy, object_mask=m, method="poisson", tol=1e-8)
-    b = integrate(noisy, object_mask=m, method="poisson-sparse")
+    a = integrate(noisy, object_mask=m, integrator="poisson", tol=1e-8)
+    b = integrate(noisy, object_mask=m, integrator="poisson-sparse")
     np.testing.assert_allclose(a, b, atol=2e-3)
 
 
@@ -158,7 +158,7 @@ def test_components_tied_to_common_base():
     m[10:50, 70:110] = True
     n = _normals_from_grad(np.full((H, W), 0.1), np.zeros((H, W)))
     for method in ("poisson", "poisson-sparse"):
-        h = integrate(n, object_mask=m, method=method)
+        h = integrate(n, object_mask=m, integrator=method)
         left, right = h[:, :60][m[:, :60]], h[:, 60:][m[:, 60:]]
         # each square keeps its own tilt exactly
         np.testing.assert_allclose(h[20, 49] - h[20, 10], 0.1 * 39, rtol=1e-4)
@@ -175,9 +175,9 @@ def test_steep_and_backfacing_normals_stay_finite():
     m = np.ones(n.shape[:2], bool)
     m[5:9, 5:30] = False
     for method in ("poisson", "poisson-dct", "fc", "poisson-sparse"):
-        h = integrate(n, method=method)
+        h = integrate(n, integrator=method)
         assert np.isfinite(h).all()
-        h = integrate(n, object_mask=m, method=method)
+        h = integrate(n, object_mask=m, integrator=method)
         assert np.isfinite(h).all()
     gc, gr = gradients(n)
     assert np.abs(gc).max() <= 1 / NZ_MIN + 1e-9 and np.abs(gr).max() <= 1 / NZ_MIN + 1e-9
@@ -194,7 +194,7 @@ def test_empty_mask_gives_zeros():
     (np.zeros((8, 8, 4)), {}, "normals must have shape"),
     (np.full((8, 8, 3), np.nan), {}, "NaN"),
     (np.zeros((8, 8, 3)), {"object_mask": np.ones((8, 7), bool)}, "object_mask must have shape"),
-    (np.zeros((8, 8, 3)), {"method": "magic"}, "method"),
+    (np.zeros((8, 8, 3)), {"integrator": "magic"}, "integrator"),
     (np.zeros((8, 8, 3)), {"datum": "max"}, "datum"),
     (np.zeros((8, 8, 3)), {"tol": 0}, "tol"),
     (np.zeros((8, 8, 3)), {"nz_min": 0}, "nz_min"),
@@ -210,13 +210,13 @@ def test_ragged_mask_and_cg_fallback_match_sparse():
     n[..., 2] = np.abs(n[..., 2]) + 0.3
     ragged = rng.random((40, 44)) < 0.6  # many small components: direct solve
     np.testing.assert_allclose(integrate(n, object_mask=ragged),
-                               integrate(n, object_mask=ragged, method="poisson-sparse"),
+                               integrate(n, object_mask=ragged, integrator="poisson-sparse"),
                                atol=1e-4)
     # CG stopped early on a large component falls back to the direct solver
     nh, _, disc, _ = _hemisphere(N=80, R=30.0)
     disc[38:42, 40:] = False
     np.testing.assert_allclose(integrate(nh, object_mask=disc, maxiter=1),
-                               integrate(nh, object_mask=disc, method="poisson-sparse"), atol=1e-4)
+                               integrate(nh, object_mask=disc, integrator="poisson-sparse"), atol=1e-4)
 
 
 def test_package_attribute_is_the_function():
@@ -259,6 +259,6 @@ def test_poisson_on_awkward_grid_sizes_matches_sparse():
     gy, gx = np.gradient(z)
     n = np.dstack([-gx, gy, np.ones_like(z)])
     n += rng.normal(scale=0.02, size=n.shape)
-    a = integrate(n, object_mask=mask, method="poisson", tol=1e-8)
-    b = integrate(n, object_mask=mask, method="poisson-sparse")
+    a = integrate(n, object_mask=mask, integrator="poisson", tol=1e-8)
+    b = integrate(n, object_mask=mask, integrator="poisson-sparse")
     assert np.abs(a - b)[mask].max() < 1e-3

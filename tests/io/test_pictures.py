@@ -130,3 +130,40 @@ def test_colour_bar_ticks_are_round():
     assert list(nice_ticks(0.0, 0.00318386)) == [0.0, 0.001, 0.002, 0.003]
     assert list(nice_ticks(0.0, 1.0)) == [0.0, 0.25, 0.5, 0.75, 1.0]
     assert all(str(t) != "-0.0" for t in nice_ticks(-180.0, 3.0))
+
+
+def _ink_rows(rgb):
+    """Rows of ``rgb`` holding dark text ink."""
+    return np.nonzero((rgb.max(axis=-1) < 80).any(axis=1))[0]
+
+
+def test_text_grows_with_the_picture():
+    """A 2048 px NE map's title and colour-bar labels are as large, relative to the
+    picture, as a 256 px one's would be at 2048 / 45 px: no tiny text on big pictures."""
+    small, big = (P.error_picture(np.full((n, n), 5.0, np.float32), title="mean NE 5.00 deg")
+                  for n in (256, 2048))
+    band = lambda pic, n: pic.shape[0] - n                  # noqa: E731 - the title band
+    assert band(small, 256) >= 16 and band(big, 2048) >= 2.5 * band(small, 256)
+    assert P.text_px(256) == 14 and P.text_px(2048) >= 45
+    bar_small, bar_big = (P.color_bar(n, 0, 20, label="NE (deg)", size=P.text_px(n))
+                          for n in (256, 2048))
+    assert bar_big.shape[1] >= 2.5 * bar_small.shape[1]      # wider labels, wider bar
+
+
+def test_height_render_of_a_large_map_keeps_its_detail_and_a_micrometre_bar():
+    """A 720 px map is rendered at its own resolution (not shrunk to a few hundred px:
+    fine marks stay visible); with a pixel size a scale bar of a round length in um is
+    drawn whose length matches that size."""
+    n = 720
+    y, x = np.mgrid[:n, :n].astype(np.float32)
+    h = 0.5 * np.sin(x / 3.0)                                # marks 19 px apart
+    plain = height_picture(h, elevation=90, azimuth=0)
+    assert plain.shape[1] >= n
+    assert height_picture(h[:128, :128]).shape[1] >= 256     # small maps are enlarged
+    px = 4.9                                                 # um per pixel
+    barred = height_picture(h, elevation=90, azimuth=0, pixel_size=px)
+    diff = (barred != plain).any(axis=-1)
+    rows = np.nonzero(diff.sum(axis=1) > 100)[0]             # the bar's thick line
+    assert rows.size
+    um = diff[rows[0]].sum() * px                            # one render px per map px
+    assert any(abs(um - v) / v < 0.02 for v in (500, 1000, 2000)), um

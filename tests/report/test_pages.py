@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import struct
 
 import pandas as pd
 import pytest
 from test_report import _store, row, table5_3_rows
 
-from psbench.report import panels
 from psbench.report import tables as T
 from psbench.report.cli import build
 from psbench.io.html import Link, inline_html, to_html, to_markdown
@@ -21,7 +21,7 @@ STATUSES = (SUPPORTED, NOT_SUPPORTED, INCONCLUSIVE)
 
 
 @pytest.fixture(scope="module")
-def report(tmp_path_factory):
+def report(tmp_path_factory, small_panels):
     """A full-scale report of a few experiments (one with a failed run, one without data)
     and the image panels at a small size."""
     tmp = tmp_path_factory.mktemp("pages")
@@ -34,7 +34,7 @@ def report(tmp_path_factory):
     rows.append(row("table6_2", 5000, data="/x/diligent/cat", lights="30x4+60x4",
                     status="failed", error="PsbenchError: data='/x/diligent/cat' not found"))
     out = tmp / "reports"
-    panels.build_panels(out, size=24, log=lambda *a: None)
+    shutil.copytree(small_panels[0], out)       # panels.build_panels(out, size=24)
     mp = pytest.MonkeyPatch()
     mp.setattr(T, "names", lambda: list(NAMES))
     try:

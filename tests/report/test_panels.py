@@ -27,11 +27,11 @@ def test_overlay_colours_tp_fp_fn():
     assert rgb[0, 3, 0] == rgb[0, 3, 1] == rgb[0, 3, 2]   # untouched: grey
 
 
-def test_build_panels_small(tmp_path):
-    names = panels.build_panels(tmp_path, size=32, log=lambda *a: None)
+def test_build_panels_small(small_panels):
+    folder, names = small_panels                 # panels.build_panels(folder, size=24)
     for n in ("masks.png", "ne_maps.png", "normals.png", "wps.png", "height3d.png"):
         assert n in names
-        data = (tmp_path / "panels" / n).read_bytes()
+        data = (folder / "panels" / n).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000
-    page = (tmp_path / "panels.md").read_text()
+    page = (folder / "panels.md").read_text()
     assert "not read from the results store" in page and "mean NE" in page

@@ -159,7 +159,7 @@ def predict(b, lights, *, object_mask=None, images=None, valid=None, height=None
     rc[~mc] = 0.0
     if height is None:
         from ...integrate.poisson import integrate
-        hc = integrate(nc, object_mask=mc, method="poisson")
+        hc = integrate(nc, object_mask=mc, integrator="poisson")
         full_h = None
     else:
         full_h = np.asarray(height, dtype=np.float32)

@@ -1,6 +1,6 @@
 """Sh: shadow mask (Section 3.3.2.5), a global normal mask.
 
-The current normals are integrated into heights (``integrate_method``); each light's
+The current normals are integrated into heights (``integrator``); each light's
 shadow map of those heights gives the cast shadows (``sh_bias``). Section 3.3.2.5 says
 Sh "works on both" cast and self shadows, so s.n <= 0 is masked too.
 """
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..._shared.deprecation import renamed_args
 from ...registry import Mask
 from .. import kernel
 from .ss import ss
@@ -15,7 +16,8 @@ from .ss import ss
 __all__ = ["sh_maps", "sh", "lit_and_unoccluded", "apply", "MASK"]
 
 
-def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson"):
+@renamed_args(renamed={"method": "integrator"})
+def sh_maps(normals, directions, object_mask=None, *, bias=None, integrator="poisson"):
     """Cast-shadow maps of the heights integrated from ``normals``.
 
     Parameters
@@ -33,7 +35,7 @@ def sh_maps(normals, directions, object_mask=None, *, bias=None, method="poisson
     from ...integrate.poisson import integrate
     from ...render.shadowmap import shadow_map
 
-    height = integrate(normals, object_mask=object_mask, method=method)
+    height = integrate(normals, object_mask=object_mask, integrator=integrator)
     kw = {} if bias is None else {"bias": bias}
     occ = shadow_map(height, np.asarray(directions, dtype=np.float64), object_mask=object_mask, **kw)
     return np.asarray(occ, dtype=bool), height
@@ -96,7 +98,7 @@ def apply(images, b, ctx):
     n, _ = kernel.split(b)
     o = ctx.options
     valid, _ = sh(n, b, ctx.S32, ctx.directions, ctx.region, bias=o.sh_bias,
-                  method=o.integrate_method)
+                  integrator=o.integrator)
     return valid
 
 

@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 from ...base import Fit
-from ...kernel import sym3_cofactors
+from ..._sym3 import sym3_solve
 from ...._shared.warn import ConvergenceWarning
 
 __all__ = ["Pixels", "wls", "leverage", "masked_median", "weights_out"]
@@ -274,13 +274,7 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
     a = np.ascontiguousarray(np.matmul(w, px.outer).T)
     wi = np.multiply(w, I, out=scratch)
     r = np.ascontiguousarray(np.matmul(wi, px.S32).T)
-    (c00, c01, c02, c11, c12, c22), det, ok = sym3_cofactors(a)
-    inv_det = np.divide(np.float32(1), det, out=np.zeros_like(det), where=ok)
-    r0, r1, r2 = r
-    b = np.empty((I.shape[0], 3), dtype=np.float32)
-    b[:, 0] = (c00 * r0 + c01 * r1 + c02 * r2) * inv_det
-    b[:, 1] = (c01 * r0 + c11 * r1 + c12 * r2) * inv_det
-    b[:, 2] = (c02 * r0 + c12 * r1 + c22 * r2) * inv_det
+    b, ok, cof, inv_det = sym3_solve(a, r)
     if not ok.all():
         bad = ~ok
         if fallback is None:
@@ -289,7 +283,7 @@ def wls(I, w, px, *, fallback=None, want_inverse=False, scratch=None):
         else:
             b[bad] = fallback[bad]
     if want_inverse:
-        inv = np.stack([c00, c01, c02, c11, c12, c22], axis=1)
+        inv = np.stack(cof, axis=1)
         inv *= inv_det[:, None]
         return b, ok, inv
     return b, ok

@@ -9,13 +9,15 @@ of pixels run on numba's threads (psbench selects numba's fork-safe threading la
 depend on the thread count.
 
 The 3x3 normal equations are accumulated in float32 (as the numpy versions' matrix
-products did) and solved in float64 by the adjugate (the singularity test of
-:func:`~._robust_common.wls`); solutions are stored in float32.
+products did) and solved in float64 by :func:`psbench.solve._sym3.solve_sym3` (the
+singularity rule of every psbench solve); solutions are stored in float32.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+
+from ..._sym3 import solve_sym3
 
 __all__ = ["trim_rows", "irls_m", "HUBER", "CAUCHY", "TUKEY", "KINDS"]
 
@@ -89,7 +91,7 @@ def _solve(I, w, O, St, out):
     (the sums vectorise over the observations).
 
     Writes b into ``out`` (3,) and returns True, or returns False (``out`` untouched)
-    where the normal matrix is numerically singular (|det| <= 1e-6 trace^3)."""
+    where the normal matrix is singular (the rule of :mod:`psbench.solve._sym3`)."""
     a00 = a01 = a02 = a11 = a12 = a22 = np.float32(0.0)
     r0 = r1 = r2 = np.float32(0.0)
     for i in range(I.shape[0]):
@@ -104,29 +106,9 @@ def _solve(I, w, O, St, out):
         r0 += wI * St[0, i]
         r1 += wI * St[1, i]
         r2 += wI * St[2, i]
-    return _solve3(np.float64(a00), np.float64(a01), np.float64(a02), np.float64(a11),
+    return solve_sym3(np.float64(a00), np.float64(a01), np.float64(a02), np.float64(a11),
                    np.float64(a12), np.float64(a22), np.float64(r0), np.float64(r1),
                    np.float64(r2), out)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2, out):
-    """The symmetric 3x3 solve by the adjugate (see :func:`_solve`)."""
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    tr = a00 + a11 + a22
-    if not abs(det) > 1e-6 * tr * tr * tr:
-        return False
-    inv = 1.0 / det
-    out[0] = np.float32((c00 * r0 + c01 * r1 + c02 * r2) * inv)
-    out[1] = np.float32((c01 * r0 + c11 * r1 + c12 * r2) * inv)
-    out[2] = np.float32((c02 * r0 + c12 * r1 + c22 * r2) * inv)
-    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -229,7 +229,12 @@ def _oracle(B, RHO, INV, T, lo, U, n, pairs, tris, binary):
                 else:
                     for q in range(n):
                         cr[q] = 0.0 if upd[q] != 0.0 else cr[q]
-        for m in range(tris.shape[0]):    # the truth inside the cone of three normals
+        # the truth inside the cone of three normals: t = x0 n_a + x1 n_b + x2 n_c, a
+        # general 3x3 system (columns: unit normals), not the symmetric normal-matrix
+        # solve of psbench.solve._sym3. Its guard only avoids dividing by 0: a thin cone
+        # is a valid candidate (the relative rule of _sym3 on the Gram matrix would refuse
+        # cones a few degrees wide and move the oracle at ~1 % of the pixels)
+        for m in range(tris.shape[0]):
             a, b, c = tris[m, 0], tris[m, 1], tris[m, 2]
             for q in range(n):
                 m00, m10, m20 = NN[a, 0, q], NN[a, 1, q], NN[a, 2, q]
