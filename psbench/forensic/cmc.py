@@ -48,6 +48,21 @@ correlation of the common valid pixels at that translation. Translations are in
 pixels, as cmcR's, so on images at another pixel size than 6.25 µm convert the
 tolerance (``translation_tol = 125 / pixel_size`` keeps cmcR's 125 µm).
 
+Chance congruence (why unrelated fields can reach the threshold). A chance congruent
+cell needs a CCF >= ``min_ccf`` *and* a pose within the tolerances of the median; the
+second has probability ~ (41 / searched translations per axis)^2 x (5 / 21 angles) for
+the defaults. Band-limited random fields (Gaussian-smoothed noise, sigma 2 px, on a
+disc; 8 unrelated pairs per size): at 256 px the 8 x 8 cells are 31 px, hold ~20
+independent samples of the field (cell area / 4 pi sigma^2), and 49 of 60 reach CCF 0.5
+by chance (median 0.55), so ~10 % of them agree with the median by chance: 3.9 congruent
+cells on average, at most 9. min_valid 0.5 instead of 0.15 leaves 3.5 (at most 6) of 52:
+the missing data are not the cause. At 384 px (47 px cells) 0.6 (at most 2); at 556 px
+(66 px cells, ~90 samples: 2 of 54 cells reach 0.5) 0 on every pair, as on the 27
+different-gun pairs of shared scans above (0-2). The fix is the field's convention
+already in the defaults -- 8 x 8 cells over a whole breech face at ~6 µm per pixel,
+cells of ~70 px -- not a constant: smaller cells (or much smoother data) make CCF 0.5
+and the 20 px tolerance meaningless.
+
 Search (:mod:`psbench.forensic._cmc_search`): every angle and translation is tried on
 2 x 2 block means of both maps (``coarse=2``), then each cell is registered again at full
 resolution at its best coarse angle and one neighbouring angle on each side, within
