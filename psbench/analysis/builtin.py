@@ -28,8 +28,8 @@ from .._shared.checks import PsbenchError, choice
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "KINDS",
-           "TRUTHS"]
+           "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "breechface",
+           "KINDS", "TRUTHS"]
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 #: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
@@ -487,3 +487,11 @@ def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
     from ..forensic.study import run
 
     return run(part, label, size=size, seed=seed, study=study)
+
+
+def breechface(part="method", label=None, *, seed=0, study=None):
+    """Real breech-face study: one part (method, scan, panels) of experiment breechface
+    (:func:`psbench.forensic.breechface_runs.run`; payload json)."""
+    from ..forensic.breechface_runs import run
+
+    return run(part, label, seed=seed, study=study)
