@@ -99,7 +99,8 @@ def score_figure(scores):
             ax.set_ylabel(what)
             ax.set_title(f"{fin}: {what} of every pair", fontsize=12)
             ax.grid(True, axis="y", alpha=0.3)
-    axes[0].legend(fontsize=9, loc="upper left")
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="outside upper center", ncol=3)
     return fig
 
 
