@@ -396,6 +396,11 @@ class Fit:
         ``thresholds``).
     result_type : type or None
         A :class:`~psbench.solve.Result` subclass to return (None: ``Result``).
+    heldout : tuple or None
+        ``(e, used)``: the fit's held-out errors and used observations, (k, P)
+        float32 and bool over the object pixels (:mod:`psbench.solve.validation`), for
+        a method that starts from this fit and falls back to it
+        (:mod:`psbench.solve.fallback`); None: not computed.
     """
 
     b: np.ndarray
@@ -409,6 +414,7 @@ class Fit:
     timings: dict = field(default_factory=dict)
     fields: dict = field(default_factory=dict)
     result_type: type | None = None
+    heldout: Any = None
 
 
 @dataclass(eq=False)

@@ -1,0 +1,110 @@
+"""The held-out fallback: a fit that models more keeps its answer only where it predicts.
+
+``robust`` and ``tsfit`` each refine a simpler answer with a richer model (``robust``:
+the trimmed Lambertian fit -> Lambert + Torrance-Sparrow; ``tsfit``: its start -> its
+own fit). A richer model always explains its own observations at least as well; it
+need not explain data it did not see. So, per pixel, the richer answer is kept only
+where it predicts the held-out observations (leave-one-light-out errors,
+:mod:`psbench.solve.validation`) better than the simpler answer it started from;
+elsewhere the pixel falls back to the simpler answer, bit for bit.
+
+The rule, in noise units. For observation i of the evaluation set E of a pixel (the
+observations either fit used; an observation a fit did not use is held out of it
+already), with held-out errors e_m,i (richer) and e_s,i (simpler) and the noise scale
+sigma_i of its image,
+
+    l(e) = min((e / sigma_i)^2, c^2),    d_i = l(e_m,i) - l(e_s,i),
+
+the truncated quadratic loss of ``robust`` (an outlier costs c^2 noise variances,
+whichever fit it hurts) and its paired difference. With d the mean of d_i over E and
+se its standard error (the standard deviation of d_i over the held-out lights
+divided by sqrt(|E|)), the richer answer is kept iff
+
+    |E| >= MIN_EVAL   and   d + Z * se < 0,
+
+i.e. it predicts better by at least ``Z`` of its own standard errors; ties and pixels
+with too few observations to tell fall back to the simpler answer. ``Z`` and ``C``
+are fixed for every object (see :data:`Z`); nothing is tuned per object.
+
+Costs: one pass over the (k, n) held-out errors the solve computes anyway for
+``Result.ve`` (:mod:`psbench.solve._fallback_kernel`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _fallback_kernel as _fk
+
+__all__ = ["Z", "C", "MIN_EVAL", "compare", "margin", "keep", "plane"]
+
+#: margin of the rule in standard errors of the paired loss difference (>= 0: the
+#: richer answer must predict better, not merely as well); chosen once on the stress
+#: grid and DiLiGenT cat and bear together (see the README of psbench's reports)
+Z = 0.0
+#: truncation of the loss in noise standard deviations (robust's ``c``)
+C = 2.5
+#: fewest evaluation observations for a pixel to keep the richer answer
+MIN_EVAL = 4
+
+
+def _f32(a):
+    return np.ascontiguousarray(a, dtype=np.float32)
+
+
+def compare(e_model, e_simple, evaluate, sigma, *, c=C):
+    """Paired held-out loss difference of two fits per pixel.
+
+    Parameters
+    ----------
+    e_model, e_simple : (k, n) float32
+        Held-out errors of the richer and the simpler fit (NaN: undefined).
+    evaluate : (k, n) bool
+        The evaluation set.
+    sigma : float or (k,) array_like
+        Noise standard deviation (per image); floored at 1e-12.
+    c : float
+        Truncation in noise standard deviations.
+
+    Returns
+    -------
+    mean, se : (n,) float64
+        Mean of d_i over the evaluation set and its standard error (inf with fewer
+        than 2 observations).
+    count : (n,) int32
+        Size of the evaluation set.
+    """
+    k, n = np.shape(e_model)
+    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (k,))
+    inv = 1.0 / np.maximum(sig, 1e-12)
+    E = np.ascontiguousarray(evaluate)
+    E = E.view(np.uint8) if E.dtype == bool else (E > 0).view(np.uint8)
+    mean, se = np.empty(n), np.empty(n)
+    count = np.empty(n, dtype=np.int32)
+    _fk.paired(_f32(e_model), _f32(e_simple), E, np.ascontiguousarray(inv), float(c * c),
+               mean, se, count)
+    return mean, se, count
+
+
+def margin(mean, se, count):
+    """(n,) float64: by how many standard errors the richer answer predicts better,
+    -mean / se (+inf: better with no spread; -inf: not better, or fewer than
+    ``MIN_EVAL`` evaluation observations)."""
+    mean, se = np.asarray(mean, dtype=np.float64), np.asarray(se, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(se > 0, -mean / np.where(se > 0, se, 1.0),
+                     np.where(mean < 0, np.inf, -np.inf))
+    t[~np.isfinite(se) | (np.asarray(count) < MIN_EVAL)] = -np.inf
+    return t
+
+
+def keep(mean, se, count, *, z=Z):
+    """(n,) bool: the richer answer predicts better by more than ``z`` standard errors
+    (``margin > z``; see the module docstring)."""
+    return margin(mean, se, count) > z
+
+
+def plane(v, idx, shape, fill=False):
+    """(H, W) map of per-object-pixel values ``v`` at flat indices ``idx``."""
+    out = np.full(shape[0] * shape[1], fill, dtype=np.asarray(v).dtype)
+    out[idx] = v
+    return out.reshape(shape)
