@@ -40,8 +40,9 @@ print(json.dumps(dict(wall=wall, cpu=cpu, ne=ne, ve=None if ve is None else ve.m
 
 def run(tree, obj, method, data):
     env = dict(os.environ, PYTHONPATH=str(tree), NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    # run from the tree (an editable install's import hook would win over PYTHONPATH)
     out = subprocess.run([sys.executable, "-c", CHILD, obj, method, data], env=env,
-                         capture_output=True, text=True, check=True)
+                         cwd=str(tree), capture_output=True, text=True, check=True)
     row = json.loads(out.stdout.strip().splitlines()[-1])
     assert row["file"].startswith(str(Path(tree).resolve())), row["file"]   # the right tree
     return row

@@ -397,8 +397,9 @@ class Fit:
     result_type : type or None
         A :class:`~psbench.solve.Result` subclass to return (None: ``Result``).
     heldout : tuple or None
-        ``(e, used)``: the fit's held-out errors and used observations, (k, P)
-        float32 and bool over the object pixels (:mod:`psbench.solve.validation`), for
+        ``(e, used, ve)``: the fit's held-out errors and used observations, (k, P)
+        float32 and bool over the object pixels, and its per-pixel validation error
+        (P,) float32 (:mod:`psbench.solve.validation`), for
         a method that starts from this fit and falls back to it
         (:mod:`psbench.solve.fallback`); None: not computed.
     """

@@ -11,10 +11,11 @@ from psbench.solve.validation import validation_map
 
 @pytest.fixture(scope="module")
 def bounce():
-    """A scene the Torrance-Sparrow model does not explain everywhere (one bounce)."""
-    surf = ps.make_surface("cup", size=32)
+    """A scene the Torrance-Sparrow model does not explain everywhere (a GGX lobe)."""
+    surf = ps.make_surface("mozart", size=32)
     lay = ps.layout("30x8+60x8")
-    return surf, lay, ps.render(surf, lay, model="ts", noise=0.02, seed=0, bounces=1)
+    return surf, lay, ps.render(surf, lay, model="ggx", roughness=0.1, f0=0.04, noise=0.02,
+                                seed=0)
 
 
 def _solve(sc, lay, om, method, mask="None", **kw):

@@ -236,11 +236,12 @@ def robust(problem, options: RobustOptions):
             warnings.warn(str(w.message), w.category, stacklevel=2)
     fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
-    fit.fields["ve"] = _validation(px, keep, use_t, ts.fields.get("ve"), e_l)
+    fit.fields["ve"] = ve = _validation(px, keep, use_t, ts.fields.get("ve"), e_l)
     if fell is not None:
         fit.fields["fallback"] = px.image(fell, fill=False)
     if e_t is not None:   # for a method started from robust (tsfit) and its fallback
-        fit.heldout = (np.where(use_t[None, :], e_t, e_l), weights > 0)
+        vals = ve.map.reshape(-1) if px.full else ve.map.reshape(-1)[px.idx]
+        fit.heldout = (np.where(use_t[None, :], e_t, e_l), weights > 0, vals)
     return fit
 
 

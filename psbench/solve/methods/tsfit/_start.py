@@ -124,8 +124,8 @@ def start_weights(problem, name, idx, I, valid, *, want_heldout=False):
     inliers : (k, P) bool
         The step's final weights >= 0.5 (all where it reports none), and ``valid``.
     heldout : tuple or None, only with ``want_heldout``
-        The step's ``Fit.heldout`` (its held-out errors and used observations over
-        the object pixels) when it reports them, else None.
+        The step's ``Fit.heldout`` (its held-out errors, used observations and
+        validation error over the object pixels) when it reports them, else None.
     """
     k = I.shape[0]
     w = None

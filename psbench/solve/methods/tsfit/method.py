@@ -307,7 +307,7 @@ def _tsfit(problem, opt, start_name):
         h_start = None
     elif h_start is None:   # a Lambertian start: its weighted LS fit
         from ...validation import lambert_heldout
-        h_start = (lambert_heldout(I, S, w_start), w_start)
+        h_start = (lambert_heldout(I, S, w_start), w_start, None)
     n0, rd0 = unit(b0)
     sigma = None
     if opt.weights == "start":
@@ -426,7 +426,7 @@ def _tsfit(problem, opt, start_name):
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
                converged=plane(conv, True, bool), info=info,
                fields={"ve": ve, "fallback": None if fell is None else plane(fell, False, bool)},
-               heldout=(e_fit, w))
+               heldout=(e_fit, w, vals))
 
 
 def _heldout(L, I, w, n, rd, rs, m):
@@ -446,13 +446,14 @@ def _heldout(L, I, w, n, rd, rs, m):
 
 def _fall_back(I, w, e_fit, vals, start, sigma, kept):
     """The held-out fallback (:mod:`psbench.solve.fallback`): (P,) bool, the pixels
-    that keep the start (its held-out errors and used observations ``start``): those
+    that keep the start (its held-out errors, used observations and validation error
+    or None, ``start``): those
     where the fit does not predict better, and those never fitted (``kept``); and the
     margin (P,) float32 (:func:`psbench.solve.fallback.margin`). Updates
     ``w``, ``e_fit`` and ``vals`` there to the start's, in place."""
     from ... import fallback as _fb
     from ...validation import validation_map
-    e0, u0 = start
+    e0, u0, ve0 = start
     mean, se, cnt = _fb.compare(e_fit, e0, w | u0, sigma)
     t = _fb.margin(mean, se, cnt)
     t[kept] = -np.inf
@@ -461,7 +462,8 @@ def _fall_back(I, w, e_fit, vals, start, sigma, kept):
     if j.size:
         w[:, j] = u0[:, j]
         e_fit[:, j] = e0[:, j]
-        vals[j] = validation_map(e0[:, j], u0[:, j], I[:, j])
+        vals[j] = (validation_map(e0[:, j], u0[:, j], I[:, j]) if ve0 is None
+                   else ve0[j])   # the start's own, when it reports it
     return fell, t.astype(np.float32)
 
 
