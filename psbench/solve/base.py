@@ -401,7 +401,8 @@ class Fit:
         float32 and bool over the object pixels, and its per-pixel validation error
         (P,) float32 (:mod:`psbench.solve.validation`), for
         a method that starts from this fit and falls back to it
-        (:mod:`psbench.solve.fallback`); None: not computed.
+        (:mod:`psbench.solve.fallback`), or a function of no arguments returning it
+        (assembled only when asked for); None: not computed.
     """
 
     b: np.ndarray

@@ -31,13 +31,15 @@ fewer than 5 images (the model has 3 unknowns per pixel and needs some redundanc
 robust is the trimmed fit alone.
 
 **Held-out fallback** (``fallback=True``, default; :mod:`psbench.solve.fallback`): a
-pixel that chose the Torrance-Sparrow fit keeps it only where that fit predicts the
-held-out observations (leave-one-light-out errors of both fits, over the observations
-either used) better than the trimmed fit, by the paired truncated loss above in units
-of its own standard error; elsewhere it falls back to the trimmed fit, bit for bit
-(``Result.fallback``). The in-sample choice compares the fits on the observations they
-were fitted to, where the richer model always gains; held out, it gains only where its
-extra freedom predicts.
+pixel that chose the Torrance-Sparrow fit falls back to the trimmed fit, bit for bit
+(``Result.fallback``), where the trimmed fit predicts the held-out observations
+(leave-one-light-out errors of both fits, over the observations either used) better, by
+the paired truncated loss above and by at least one standard error of it. The in-sample
+choice compares the fits on the observations they were fitted to, where the richer
+model always gains; held out, it gains only where its extra freedom predicts. Measured
+(stress cells and cat and bear, see :mod:`psbench.solve.fallback`): about 1 % of the
+pixels fall back and the mean NE hardly changes (real 5.170 -> 5.171, synthetic
+4.391 -> 4.397 deg).
 
 Why this method -- the choice rule, fixed before measuring: the lowest mean of [mean
 NE over DiLiGenT cat and bear with all 96 lights, the 16 lights nearest 30x8+60x8 and
@@ -240,8 +242,9 @@ def robust(problem, options: RobustOptions):
     if fell is not None:
         fit.fields["fallback"] = px.image(fell, fill=False)
     if e_t is not None:   # for a method started from robust (tsfit) and its fallback
-        vals = ve.map.reshape(-1) if px.full else ve.map.reshape(-1)[px.idx]
-        fit.heldout = (np.where(use_t[None, :], e_t, e_l), weights > 0, vals)
+        # (a function: assembled only when a method started from robust asks for it)
+        fit.heldout = lambda: (np.where(use_t[None, :], e_t, e_l), weights > 0,
+                               ve.map.reshape(-1) if px.full else ve.map.reshape(-1)[px.idx])
     return fit
 
 

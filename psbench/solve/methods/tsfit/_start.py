@@ -141,6 +141,8 @@ def start_weights(problem, name, idx, I, valid, *, want_heldout=False):
             fit = spec.func(problem, spec.options())
             bfull = fit.b
             heldout = getattr(fit, "heldout", None)
+            if callable(heldout) and want_heldout:
+                heldout = heldout()
             wf = fit.weights if fit.weights is not None else fit.valid
             if wf is not None:
                 w = take(np.asarray(wf).reshape(k, -1), idx) >= 0.5
