@@ -213,7 +213,8 @@ def robust(problem, options: RobustOptions):
     e_t = ts.heldout[0] if ts.heldout is not None else None
     fell = None
     if options.fallback and e_t is not None:
-        mean, se, cnt = _fb.compare(e_t, e_l, keep | (w_t > 0), sigma, c=options.c)
+        mean, se, cnt = _fb.compare(e_t, e_l, keep | (w_t > 0), sigma, c=options.c,
+                                    scale=px.scale)
         t = _fb.margin(mean, se, cnt)
         ok = t > _fb.Z
         fell = use_t & ~ok
