@@ -62,8 +62,9 @@ than its start drop from 74 to 34 of 399.
 Where it costs accuracy: with few lights (6 to 8, not in the grid above) the held-out
 errors of a 3-unknown fit are too few and too leveraged to tell the fits apart, and
 tsfit falls back to a worse start (measured at the ci scale: Table 5.3's model part,
-45x6 / 45x8 / 45x12 rings, noise-free tsfit 0.77 -> 1.72 deg; the robust experiment's
-sombrero with 45x8 at 5 % noise 3.25 -> 3.93 deg). On the grid above it costs more
+45x6 / 45x8 / 45x12 rings, tsfit 0.77 -> 0.89 deg noise-free, 9.83 -> 10.53 deg at
+10 % noise; the robust experiment's sombrero with 45x8 at 5 % noise, tsfit 3.25 -> 3.92
+and robust 4.02 -> 4.22 deg). On the grid above it costs more
 than 0.1 deg in 56 of 399 cells (up to 0.44 deg, mostly cup and vgroove at 5 % noise)
 and gains more than 0.1 deg in 91. On noisy renders of the model itself it costs tsfit
 up to 0.2 deg (5 % noise, 96^2: sombrero2 45x16 2.20 -> 2.41, semisphere_disc 45x16
