@@ -40,13 +40,13 @@ synthetic):
 Z          robust           tsfit
 =========  ===============  ===============
 off        5.170, 4.391     5.121, 4.534
--3         5.171, 4.393     4.988, 4.474
--2         5.171, 4.393     4.977, 4.413
--1         5.171, 4.397     4.998, 4.355
--0.5       5.170, 4.407     5.011, 4.355
-0          5.178, 4.451     5.024, 4.361
-1          5.255, 4.755     5.059, 4.376
-2          5.372, 5.333     5.087, 4.384
+-3         5.171, 4.391     4.988, 4.473
+-2         5.171, 4.392     4.977, 4.412
+-1         5.171, 4.395     4.998, 4.355
+-0.5       5.170, 4.405     5.011, 4.354
+0          5.178, 4.449     5.024, 4.360
+1          5.255, 4.749     5.059, 4.375
+2          5.372, 5.307     5.087, 4.382
 =========  ===============  ===============
 
 (tsfit's rows are computed with robust at Z = -1 as its start; with robust at Z = 0 as
@@ -57,7 +57,7 @@ back to the simpler, less precise fit: robust loses 0.06 deg on average at Z = 0
 loss, so its fallback rarely changes a pixel at Z = -1 (1 % of the pixels); tsfit's
 fallback to its start gains 0.12 deg on cat and bear (5.05 -> 4.91, 5.19 -> 5.08) and
 0.18 deg on the synthetic cells, and the cells where tsfit is more than 0.3 deg worse
-than its start drop from 74 to 34 of 399.
+than its start drop from 73 to 34 of 399.
 
 Where it costs accuracy: with few lights (6 to 8, not in the grid above) the held-out
 errors of a 3-unknown fit are too few and too leveraged to tell the fits apart, and
@@ -65,7 +65,7 @@ tsfit falls back to a worse start (measured at the ci scale: Table 5.3's model p
 45x6 / 45x8 / 45x12 rings, tsfit 0.77 -> 0.89 deg noise-free, 9.83 -> 10.53 deg at
 10 % noise; the robust experiment's sombrero with 45x8 at 5 % noise, tsfit 3.25 -> 3.92
 and robust 4.02 -> 4.22 deg). On the grid above it costs more
-than 0.1 deg in 56 of 399 cells (up to 0.44 deg, mostly cup and vgroove at 5 % noise)
+than 0.1 deg in 54 of 399 cells (up to 0.44 deg, mostly cup and vgroove at 5 % noise)
 and gains more than 0.1 deg in 91. On noisy renders of the model itself it costs tsfit
 up to 0.2 deg (5 % noise, 96^2: sombrero2 45x16 2.20 -> 2.41, semisphere_disc 45x16
 4.47 -> 4.58), where the fit is near the per-pixel Cramer-Rao bound and the held-out

@@ -136,3 +136,14 @@ def test_validation_map_of_fallen_back_pixels_is_the_start_s(bounce):
     w = t.valid.reshape(k, -1)[:, f.reshape(-1)]
     ref = validation_map(lambert_heldout(I, lay.S, w), w, I)
     np.testing.assert_allclose(r.ve.map[f], ref, rtol=1e-6)
+
+
+def test_outputs_write_the_fallback_map(bounce, tmp_path):
+    from psbench.io._write import write_outputs
+    surf, lay, sc = bounce
+    om = surf.object_mask
+    r = _solve(sc, lay, om, "tsfit")
+    files = write_outputs(tmp_path, r, object_mask=om, images=sc.images, height=False,
+                          per_image=False)
+    assert "fallback.png" in files and "fallback.npz" in files
+    np.testing.assert_array_equal(np.load(tmp_path / "fallback.npz")["fallback"], r.fallback)
