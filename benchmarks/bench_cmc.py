@@ -1,7 +1,9 @@
 """CMC per pair: median wall time of :func:`psbench.forensic.cmc` on two ~550^2 maps.
 
-Baseline in the same run: :func:`psbench.forensic.compare` (band-pass and whole-map
-registration over the full circle, CCFmax only). Inputs are the shared real scans when
+Baselines in the same run: the exhaustive search (``coarse=1``: every angle and
+translation at full resolution, psbench's search before the coarse-to-fine one) and
+:func:`psbench.forensic.compare` (band-pass and whole-map registration over the full
+circle, CCFmax only). Inputs are the shared real scans when
 present (``$PSBENCH_X3P``, default ../shared/data/forensic/weller, read with ``x3pio``),
 else band-limited synthetic fields of the same size. The load average is printed: the
 machine may be shared.
@@ -52,18 +54,22 @@ def main():
     pairs = [(scans[0], scans[1], "same gun"), (scans[0], scans[2], "different guns")]
     for a, b, kind in pairs:
         cmc(a[1], b[1], a[2], b[2], pixel_size=px)      # warm-up
-        t_cmc, t_reg = [], []
+        t_cmc, t_full, t_reg = [], [], []
         for _ in range(args.repeat):
             t0 = time.perf_counter()
             r = cmc(a[1], b[1], a[2], b[2], pixel_size=px)
             t_cmc.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
+            f = cmc(a[1], b[1], a[2], b[2], pixel_size=px, coarse=1)
+            t_full.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
             m = compare(np.nan_to_num(a[1]), np.nan_to_num(b[1]), a[2], b[2], pixel_size=px)
             t_reg.append(time.perf_counter() - t0)
-        mc, mr = statistics.median(t_cmc), statistics.median(t_reg)
+        mc, mf, mr = (statistics.median(t) for t in (t_cmc, t_full, t_reg))
         print(f"{a[0]} vs {b[0]} ({kind}, {a[1].shape} vs {b[1].shape}): cmc {mc:.3f} s "
-              f"(count {r.count}/{len(r.cells)}, CCF {r.ccf:.3f}); compare {mr:.3f} s "
-              f"(CCFmax {m.ccf:.3f}); ratio {mc / mr:.2f}")
+              f"(count {r.count}/{len(r.cells)}, CCF {r.ccf:.3f}); exhaustive {mf:.3f} s "
+              f"(count {f.count}, CCF {f.ccf:.3f}); compare {mr:.3f} s (CCFmax {m.ccf:.3f}); "
+              f"cmc / exhaustive {mc / mf:.2f}, cmc / compare {mc / mr:.2f}")
     print(f"load average {os.getloadavg()}")
 
 

@@ -94,6 +94,11 @@ def main():
     print(f"per scan (all methods): {scan_s:.1f} s; per pair: {pair_s:.2f} s; full scale "
           f"estimate for these {groups} groups: 95 scans x {scan_s:.0f} s + 4465 pairs x "
           f"{groups} x {pair_s:.2f} s = {(95 * scan_s + 4465 * groups * pair_s) / 3600:.1f} h")
+    # experiment breechface at scale full: 2 finishes x 7 labels x 2 integrators + scans
+    n_maps = 2 * 7 * 2 + 1
+    print(f"experiment breechface, full scale (95 scans, 2 finishes, {n_maps} maps of 4465 "
+          f"pairs): {2 * 95 * scan_s / 3600:.1f} h of reconstruction (if this run's "
+          f"methods are all of them) + {4465 * n_maps * pair_s / 3600:.1f} h of comparisons")
     print(f"load average {os.getloadavg()}")
 
 

@@ -1,10 +1,11 @@
-"""A/B timing of ``robust`` and ``tsfit`` with the validation error against a tree before it.
+"""A/B timing of ``robust`` and ``tsfit`` (validation error, held-out fallback) against a tree before.
 
 Runs each tree in its own process (``PYTHONPATH`` = the tree), alternating the trees
 per repeat so that both see the same load: DiLiGenT cat and bear with all 96 lights,
 ``robust`` and ``tsfit`` with their defaults, one numba thread. Reports the median wall
 and CPU time of the solve over ``--repeat`` runs (after a warm-up solve that compiles
-the kernels), the ratio new / before, the NE of both trees, and the load average.
+the kernels), the ratio new / before (of the medians), the NE of both trees, the new tree's fallback
+fraction and the load average.
 
 Usage::
 
@@ -31,15 +32,20 @@ r = ps.solve(d.images, d.lights, method=method, object_mask=om)
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 ne = float(ps.normal_error(r.normals, d.normals, object_mask=om))
 ve = getattr(r, "ve", None)
-print(json.dumps(dict(wall=wall, cpu=cpu, ne=ne, ve=None if ve is None else ve.mean)))
+fb = getattr(r, "fallback", None)
+print(json.dumps(dict(wall=wall, cpu=cpu, ne=ne, ve=None if ve is None else ve.mean,
+                      fb=None if fb is None else float(fb[om].mean()), file=ps.__file__)))
 """
 
 
 def run(tree, obj, method, data):
     env = dict(os.environ, PYTHONPATH=str(tree), NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    # run from the tree (an editable install's import hook would win over PYTHONPATH)
     out = subprocess.run([sys.executable, "-c", CHILD, obj, method, data], env=env,
-                         capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+                         cwd=str(tree), capture_output=True, text=True, check=True)
+    row = json.loads(out.stdout.strip().splitlines()[-1])
+    assert row["file"].startswith(str(Path(tree).resolve())), row["file"]   # the right tree
+    return row
 
 
 def main(argv=None):
@@ -54,8 +60,8 @@ def main(argv=None):
     import numpy as np
     print(f"load average at start: {os.getloadavg()}")
     print("| object | method | before wall s | new wall s | ratio | before cpu s | new cpu s | "
-          "NE before | NE new | ve mean new |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "NE before | NE new | ve mean new | fallback new |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for obj in a.objects:
         for m in a.methods:
             res = {"before": [], "new": []}
@@ -67,7 +73,7 @@ def main(argv=None):
             b, n = med["before"], med["new"]
             print(f"| {obj} | {m} | {b['wall']:.2f} | {n['wall']:.2f} | {n['wall'] / b['wall']:.3f} "
                   f"| {b['cpu']:.2f} | {n['cpu']:.2f} | {b['ne']:.2f} | {n['ne']:.2f} | "
-                  f"{res['new'][-1]['ve']:.4f} |", flush=True)
+                  f"{res['new'][-1]['ve']:.4f} | {res['new'][-1]['fb']} |", flush=True)
     print(f"load average at end: {os.getloadavg()}")
 
 

@@ -24,7 +24,7 @@ def reconstruct(case):
     acq = acquire(case)
     res = ps.solve(acq.images, acq.lights, mask="Th-Hi-Re-Sh", weighted=True,
                    object_mask=case.object_mask)
-    z = ps.integrate(res.normals, object_mask=case.object_mask, method="bilateral")
+    z = ps.integrate(res.normals, object_mask=case.object_mask, integrator="bilateral")
     return acq, z * case.pixel_size  # heights in µm
 
 

@@ -29,8 +29,8 @@ from ..registry import Analysis
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
-           "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "KINDS",
-           "TRUTHS"]
+           "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "breechface",
+           "KINDS", "TRUTHS"]
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 #: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
@@ -490,6 +490,14 @@ def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
     return run(part, label, size=size, seed=seed, study=study)
 
 
+def breechface(part="method", label=None, *, seed=0, study=None):
+    """Real breech-face study: one part (method, scan, panels) of experiment breechface
+    (:func:`psbench.forensic.breechface_runs.run`; payload json)."""
+    from ..forensic.breechface_runs import run
+
+    return run(part, label, seed=seed, study=study)
+
+
 # ----------------------------------------------------------------------------- registry
 def _spec(func):
     return Analysis(name=func.__name__, func=func,
@@ -499,6 +507,6 @@ def _spec(func):
 #: psbench's own ``kind=analysis`` computations, registered like a plug-in's (the
 #: ``psbench.analyses`` group of :mod:`psbench.registry`)
 ANALYSES = tuple(_spec(f) for f in (
-    diffuse_counts, forensic, highlight_truth_options, ie_decomposition, mask_scores,
-    ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
+    breechface, diffuse_counts, forensic, highlight_truth_options, ie_decomposition,
+    mask_scores, ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
     table_5_5, table_5_6, wps_table))

@@ -87,9 +87,10 @@ def reconstruct_scan(height_um, valid, *, pixel_size, methods=STUDY_METHODS,
         Band-pass (µm) applied to every reconstruction and to the scan.
     meter : {"object", "frame"}
         Exposure metering of :func:`render_scan`.
-    recipe : callable, optional
+    recipe : callable or dict, optional
         ``recipe(images, lights, object_mask=, pixel_size=) -> heights (µm)``, scored as
-        method ``"recipe"`` (integrator ``"-"``).
+        method ``"recipe"`` (integrator ``"-"``); a dict ``{integrator: recipe}`` scores
+        each under its integrator.
 
     Returns
     -------
@@ -125,10 +126,11 @@ def reconstruct_scan(height_um, valid, *, pixel_size, methods=STUDY_METHODS,
             h = INTEGRATORS[integ](res.normals, valid) * np.float32(pixel_size)
             keep(name, integ, h, t_solve, time.perf_counter() - t0)
         del res
-    if recipe is not None:
+    recipes = recipe if isinstance(recipe, dict) else {"-": recipe} if recipe else {}
+    for integ, rec in recipes.items():
         t0 = time.perf_counter()
-        h = recipe(acq.images, acq.lights, object_mask=valid, pixel_size=pixel_size)
-        keep("recipe", "-", h, time.perf_counter() - t0, 0.0)
+        h = rec(acq.images, acq.lights, object_mask=valid, pixel_size=pixel_size)
+        keep("recipe", integ, h, time.perf_counter() - t0, 0.0)
     return maps, rows
 
 

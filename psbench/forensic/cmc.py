@@ -35,6 +35,8 @@ translation_tol           20 px        cmcR ``xThresh = yThresh = 20`` (pixels a
                                        6.25 µm working resolution, i.e. 125 µm)
 rotation_tol              6 deg        cmcR ``thetaThresh = 6``
 min_ccf                   0.5          cmcR ``corrThresh = .5``
+coarse, refine            2, 1         psbench's coarse-to-fine search (below); ``coarse=1``
+                                       is cmcR's exhaustive search
 ========================  ===========  ==================================================
 
 Where psbench departs from cmcR: the cell's correlation over translations is a
@@ -46,24 +48,45 @@ correlation of the common valid pixels at that translation. Translations are in
 pixels, as cmcR's, so on images at another pixel size than 6.25 µm convert the
 tolerance (``translation_tol = 125 / pixel_size`` keeps cmcR's 125 µm).
 
-Cost: per angle, three batched forward transforms of the target regions (values,
-squares, mask) and three inverse ones (correlation, target energy and overlap under
-each cell) over all cells at once; no loop over pixels. Two ~560^2 shared scans (33
-cells, 21 angles, 216^2 transforms): 2.6 s per pair on 2 shared cores at a load average
-of ~4.5 (benchmarks/bench_cmc.py; whole-map :func:`~psbench.forensic.compare` 0.85 s in
-the same run), of which ~55 % are the transforms. CCFmax of the whole scans is measured at the consensus pose, with
-a small translation search around it (:func:`cmc` ``ccf``).
+Chance congruence (why unrelated fields can reach the threshold). A chance congruent
+cell needs a CCF >= ``min_ccf`` *and* a pose within the tolerances of the median; the
+second has probability ~ (41 / searched translations per axis)^2 x (5 / 21 angles) for
+the defaults. Band-limited random fields (Gaussian-smoothed noise, sigma 2 px, on a
+disc; 8 unrelated pairs per size): at 256 px the 8 x 8 cells are 31 px, hold ~20
+independent samples of the field (cell area / 4 pi sigma^2), and 49 of 60 reach CCF 0.5
+by chance (median 0.55), so ~10 % of them agree with the median by chance: 3.9 congruent
+cells on average, at most 9. min_valid 0.5 instead of 0.15 leaves 3.5 (at most 6) of 52:
+the missing data are not the cause. At 384 px (47 px cells) 0.6 (at most 2); at 556 px
+(66 px cells, ~90 samples: 2 of 54 cells reach 0.5) 0 on every pair, as on the 27
+different-gun pairs of shared scans above (0-2). The fix is the field's convention
+already in the defaults -- 8 x 8 cells over a whole breech face at ~6 µm per pixel,
+cells of ~70 px -- not a constant: smaller cells (or much smoother data) make CCF 0.5
+and the 20 px tolerance meaningless.
+
+Search (:mod:`psbench.forensic._cmc_search`): every angle and translation is tried on
+2 x 2 block means of both maps (``coarse=2``), then each cell is registered again at full
+resolution at its best coarse angle and one neighbouring angle on each side, within
+4 px of the coarse translation at that angle (``coarse=1``: the exhaustive full-resolution
+search, cmcR's). Per angle the target is rotated once for all cells; the cells'
+correlations over all translations are one batch of real FFTs; no loop over pixels.
+Measured on 36 pairs of 9 shared scans (guns 1-3, 9 same-gun pairs), coarse-to-fine
+against exhaustive: same-gun consensus poses equal within 0.5 px and 0 deg on all 9,
+CCFmax within 0.006, counts 0.8 lower on average (at most 3 of ~33), 96 % of the
+exhaustive search's congruent cells found at the same pose (within 1 px, one angle
+step); different-gun counts within 1 (mean +0.04). Time per pair 0.33 x the exhaustive
+search's (median over the 36 pairs, load average ~10 on 2 cores;
+benchmarks/bench_cmc.py). CCFmax of the whole scans is measured at the consensus pose,
+with a small translation search around it (:func:`cmc` ``ccf``).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
-import scipy.fft as sfft
 
 from .._shared.checks import PsbenchError, as_mask
+from . import _cmc_search as _ccs
 from .cartridge import check_pixel_size
 from .identify import bandpass as _bandpass
 
@@ -105,7 +128,8 @@ class CmcResult:
     cells : DataFrame
         One row per reference cell that took part: ``row, col`` (grid index),
         ``top, left, height, width`` (pixels in the reference), ``valid`` (fraction of
-        the cell with data), ``ccf`` (Pearson correlation at the cell's best pose),
+        the cell with data), ``overlap`` (fraction of those on the target's data at
+        the cell's pose), ``ccf`` (Pearson correlation at the cell's best pose),
         ``dx, dy, theta`` (its pose, as :class:`Pose`), ``congruent`` (bool).
     pose : Pose
         Consensus pose (median of the cells' poses).
@@ -137,30 +161,7 @@ def _bbox(m):
     return rr.min(), rr.max() + 1, cc.min(), cc.max() + 1
 
 
-def _rotated(z, m, theta, cb, ca, shape, shift=(0.0, 0.0)):
-    """Target rotated by ``theta`` about ``cb``, ``cb`` put on ``ca`` (+ shift), in a frame
-    of ``shape``; values 0 and mask False where there is no data."""
-    M = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), float(theta), 1.0)
-    M[:, 2] += (ca[0] - cb[0] + shift[0], ca[1] - cb[1] + shift[1])
-    size = (shape[1], shape[0])
-    zr = cv2.warpAffine(z, M, size, flags=cv2.INTER_LINEAR, borderValue=0.0)
-    wr = cv2.warpAffine(m.astype(np.float32), M, size, flags=cv2.INTER_LINEAR, borderValue=0.0)
-    mr = wr > 0.999   # only pixels whose four neighbours all carry data
-    return np.where(mr, zr, 0.0).astype(np.float32), mr, M
-
-
-def _pearson(x, y, m, min_count):
-    """Row-wise Pearson correlation of (n, P) arrays over mask ``m``; NaN if too few."""
-    cnt = m.sum(1)
-    min_count = np.broadcast_to(np.asarray(min_count, float).reshape(-1), cnt.shape)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mx = (x * m).sum(1) / cnt
-        my = (y * m).sum(1) / cnt
-        xc = (x - mx[:, None]) * m
-        yc = (y - my[:, None]) * m
-        r = (xc * yc).sum(1) / np.sqrt((xc * xc).sum(1) * (yc * yc).sum(1))
-    r[(cnt < min_count) | ~np.isfinite(r)] = np.nan
-    return r
+_rotated, _pearson = _ccs.rotated, _ccs.pearson
 
 
 def _check_options(cells, min_valid, region, angles, translation_tol, rotation_tol, min_ccf):
@@ -192,7 +193,7 @@ def cmc(height_a, height_b, valid_a=None, valid_b=None, *, pixel_size,
         region=CMC_DEFAULTS["region"], angles=CMC_DEFAULTS["angles"],
         translation_tol=CMC_DEFAULTS["translation_tol"],
         rotation_tol=CMC_DEFAULTS["rotation_tol"], min_ccf=CMC_DEFAULTS["min_ccf"],
-        ccf_search=3):
+        ccf_search=3, coarse=2, refine=1):
     """Congruent matching cells of reference ``a`` on target ``b``.
 
     Parameters
@@ -227,6 +228,15 @@ def cmc(height_a, height_b, valid_a=None, valid_b=None, *, pixel_size,
         CCFmax: the whole-map correlation is maximised over translations within this
         many pixels and rotations within one angle step (halved twice) of the
         consensus pose.
+    coarse : int, default 2
+        Block size of the first search: every angle and translation is tried on
+        ``coarse`` x ``coarse`` block means, then each cell is registered again at
+        full resolution at its best coarse angle and ``refine`` neighbouring angles on
+        each side, within ``2 * coarse`` pixels of the coarse translation (psbench's
+        speed-up, about 3x; ``coarse=1`` searches every angle and translation at full
+        resolution, as cmcR does).
+    refine : int, default 1
+        Neighbouring angles (each side) re-registered at full resolution.
 
     Returns
     -------
@@ -246,6 +256,10 @@ def cmc(height_a, height_b, valid_a=None, valid_b=None, *, pixel_size,
         raise PsbenchError("valid_a and valid_b must each hold at least 64 pixels with data")
     nr, nc, ang = _check_options(cells, min_valid, region, angles, translation_tol,
                                  rotation_tol, min_ccf)
+    for name, v, low in (("coarse", coarse, 1), ("refine", refine, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+            raise PsbenchError(f"{name} must be an integer >= {low}, got {v!r}")
+    ang = np.sort(ang)           # the refinement's neighbouring angles are neighbours here
     if not filtered:
         za = _bandpass(np.where(ma, za, 0), ma, pixel_size=ps, short=short, long=long)
         zb = _bandpass(np.where(mb, zb, 0), mb, pixel_size=ps, short=short, long=long)
@@ -258,89 +272,47 @@ def cmc(height_a, height_b, valid_a=None, valid_b=None, *, pixel_size,
     if ch < 4 or cw < 4:
         raise PsbenchError(f"cells={cells!r} makes cells of {ch} x {cw} pixels; use fewer cells")
     ph, pw = int(round((region - 1) / 2 * ch)), int(round((region - 1) / 2 * cw))
-    th, tw = ch + 2 * ph, cw + 2 * pw                   # target region
-    fh, fw = sfft.next_fast_len(th, real=True), sfft.next_fast_len(tw, real=True)
-    # reference frame padded so every target region lies inside it
-    frame = (za.shape[0] + 2 * ph + ch, za.shape[1] + 2 * pw + cw)
-    off = np.array([ph, pw])
-    A = np.zeros(frame, np.float32)
-    MA = np.zeros(frame, bool)
-    A[ph:ph + za.shape[0], pw:pw + za.shape[1]] = za
-    MA[ph:ph + za.shape[0], pw:pw + za.shape[1]] = ma
     grid = [(i, j, r0 + i * ch, c0 + j * cw) for i in range(nr) for j in range(nc)]
-    tops = np.array([g[2] for g in grid]) + off[0]
-    lefts = np.array([g[3] for g in grid]) + off[1]
-    ri = np.arange(ch)[None, :, None]
-    ci = np.arange(cw)[None, None, :]
-    cm = MA[tops[:, None, None] + ri, lefts[:, None, None] + ci]
-    frac = cm.mean((1, 2))
+    tops0 = np.array([g[2] for g in grid])
+    lefts0 = np.array([g[3] for g in grid])
+    # valid fraction of each cell (cells may reach past the map: that part is missing)
+    mpad = np.zeros((za.shape[0] + ch, za.shape[1] + cw), bool)
+    mpad[:za.shape[0], :za.shape[1]] = ma
+    frac = _ccs.sliding_window_view(mpad, (ch, cw))[tops0, lefts0].mean((1, 2))
     keep = frac >= float(min_valid)
     if keep.sum() < 2:
         raise PsbenchError(f"fewer than 2 cells of the reference have >= {min_valid} valid "
                            "pixels; use fewer cells or a lower min_valid")
     grid = [g for g, k in zip(grid, keep) if k]
-    tops, lefts, cm, frac = tops[keep], lefts[keep], cm[keep], frac[keep]
-    n = len(grid)
-    ca_ = A[tops[:, None, None] + ri, lefts[:, None, None] + ci]
-    # zero-mean cells over their valid pixels, at the FFT frame's origin: the circular
-    # correlation at index t = s + (ph, pw) (shift s in [-ph, ph]) never wraps
-    cnt = cm.sum((1, 2))
-    ca_ = np.where(cm, ca_ - ((ca_ * cm).sum((1, 2)) / cnt)[:, None, None], 0).astype(np.float32)
-    pad = np.zeros((n, fh, fw), np.float32)
-    pad[:, :ch, :cw] = ca_
-    FA = np.conj(sfft.rfft2(pad, workers=-1))
-    pad[:] = 0
-    pad[:, :ch, :cw] = cm
-    FM = np.conj(sfft.rfft2(pad, workers=-1))
-    energy = (ca_ * ca_).sum((1, 2))
-    need = np.maximum(16.0, 0.5 * cnt) - 0.5
-    min_count = need
-
+    tops0, lefts0, frac = tops0[keep], lefts0[keep], frac[keep]
     cb, cen_a = _centre(mb), _centre(ma)
-    cen_frame = (cen_a[0] + pw, cen_a[1] + ph)
-    # per angle: best translation of each cell by the locally normalised FFT
-    # correlation, then the Pearson correlation of the common valid pixels there
-    best = np.full((len(ang), n, 3), np.nan)   # ccf, sy, sx
-    tr = np.arange(th)[None, :, None]
-    tc = np.arange(tw)[None, None, :]
-    ys, xs = np.arange(2 * ph + 1) - ph, np.arange(2 * pw + 1) - pw
-    for k, theta in enumerate(ang):
-        B, MB, _ = _rotated(zb, mb, theta, cb, cen_frame, frame)
-        rb = B[(tops - ph)[:, None, None] + tr, (lefts - pw)[:, None, None] + tc]
-        pad[:] = 0
-        pad[:, :th, :tw] = rb
-        FB = sfft.rfft2(pad, workers=-1)
-        pad[:, :th, :tw] = rb * rb
-        FB2 = sfft.rfft2(pad, workers=-1)
-        pad[:, :th, :tw] = MB[(tops - ph)[:, None, None] + tr, (lefts - pw)[:, None, None] + tc]
-        FMB = sfft.rfft2(pad, workers=-1)
-        num = sfft.irfft2(FA * FB, s=(fh, fw), workers=-1)
-        den = sfft.irfft2(FM * FB2, s=(fh, fw), workers=-1)
-        over = sfft.irfft2(FM * FMB, s=(fh, fw), workers=-1)
-        # index t: cell pixel u against region pixel u + t, i.e. shift s = t - (ph, pw)
-        num = num[:, :2 * ph + 1, :2 * pw + 1]
-        den = den[:, :2 * ph + 1, :2 * pw + 1]
-        over = over[:, :2 * ph + 1, :2 * pw + 1]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            score = num / np.sqrt(np.maximum(den, 1e-12) * energy[:, None, None])
-        # too small an overlap correlates by chance: at least half the cell's data
-        score[~np.isfinite(score) | (over < need[:, None, None])] = -np.inf
-        flat = score.reshape(n, -1).argmax(1)
-        iy, ix = np.divmod(flat, 2 * pw + 1)
-        sy, sx = ys[iy], xs[ix]
-        rr = tops[:, None, None] + sy[:, None, None] + ri
-        cc = lefts[:, None, None] + sx[:, None, None] + ci
-        pb, pm = B[rr, cc], MB[rr, cc]
-        both = (cm & pm).reshape(n, -1)
-        r = _pearson(ca_.reshape(n, -1), pb.reshape(n, -1), both, min_count)
-        best[k] = np.stack([r, sy, sx], 1)
+    f_coarse = max(1, int(coarse))
 
-    score = np.where(np.isfinite(best[..., 0]), best[..., 0], -np.inf)
-    kbest = score.argmax(0)
-    sel = best[kbest, np.arange(n)]
-    cell_ccf = sel[:, 0]
+    def problem(f):
+        """The search at block size f: frames padded so every target region fits."""
+        if f == 1:
+            a, m_a, b, m_b = za, ma, zb, mb
+        else:
+            a, m_a = _ccs.downsample(za, ma, f)
+            b, m_b = _ccs.downsample(zb, mb, f)
+        hy, hx = ph // f, pw // f
+        c_h, c_w = max(2, ch // f), max(2, cw // f)
+        pad = -(-(max(ph, pw) + 2 * f_coarse + max(nr, nc) + 2) // f)
+        frame = (a.shape[0] + 2 * pad, a.shape[1] + 2 * pad)
+        A = np.zeros(frame, np.float32)
+        MA = np.zeros(frame, bool)
+        A[pad:pad + a.shape[0], pad:pad + a.shape[1]] = a
+        MA[pad:pad + a.shape[0], pad:pad + a.shape[1]] = m_a
+        to = lambda c: (np.asarray(c, float) - (f - 1) / 2) / f  # noqa: E731 block coords
+        cel = _ccs.Cells(A, MA, tops0 // f + pad, lefts0 // f + pad, c_h, c_w,
+                         max(4.0, 16.0 / f ** 2))
+        return {"cells": cel, "zmb": _ccs.stacked(b, m_b), "cb": to(cb), "ca": to(cen_a) + pad,
+                "frame": frame, "half": (hy, hx) if f > 1 else (ph, pw)}
+
+    cell_ccf, sy, sx, overlap, kbest = _ccs.register_cells(problem, ang, coarse=f_coarse,
+                                                  refine=int(refine))
     # the shift s moves the cell onto the rotated target: the target's pose is -s
-    dy, dx, theta = -sel[:, 1], -sel[:, 2], ang[kbest]
+    dy, dx, theta = -sy, -sx, ang[kbest]
     ok = np.isfinite(cell_ccf)
     if ok.any():
         med = (float(np.median(dx[ok])), float(np.median(dy[ok])), float(np.median(theta[ok])))
@@ -354,38 +326,54 @@ def cmc(height_a, height_b, valid_a=None, valid_b=None, *, pixel_size,
     ccf, pose = _ccfmax(za, ma, zb, mb, cb, cen_a, med, step, int(ccf_search))
     table = pd.DataFrame({
         "row": [g[0] for g in grid], "col": [g[1] for g in grid],
-        "top": tops - off[0], "left": lefts - off[1], "height": ch, "width": cw,
-        "valid": frac, "ccf": cell_ccf, "dx": dx, "dy": dy, "theta": theta,
+        "top": tops0, "left": lefts0, "height": ch, "width": cw,
+        "valid": frac, "overlap": overlap, "ccf": cell_ccf, "dx": dx, "dy": dy, "theta": theta,
         "congruent": congruent})
     return CmcResult(int(congruent.sum()), table, pose, ccf)
 
 
 def _ccfmax(za, ma, zb, mb, cb, ca, med, step, radius):
     """Whole-map Pearson correlation maximised near the consensus pose (hill climb over
-    translation within ``radius`` px and rotation in shrinking steps)."""
-    shape = za.shape
+    integer translations within ``radius`` px of it and rotation in shrinking steps)."""
+    H, W = za.shape
+    R = int(radius)
+    zmb = _ccs.stacked(zb, mb)
+    # the reference's valid pixels, as flat indices into the R px larger frame
+    yy, xx = np.nonzero(ma)
+    base = (yy + R) * (W + 2 * R) + (xx + R)
+    a = za[yy, xx].astype(np.float64)
+    warped = {}
 
-    def corr(dx, dy, th):
-        B, MB, M = _rotated(zb, mb, th, cb, ca, shape, (dx, dy))
-        both = (ma & MB).reshape(1, -1)
-        r = _pearson(za.reshape(1, -1), B.reshape(1, -1), both, 64)[0]
+    def corr(i, j, th):
+        # one warp per angle, into a frame R px larger: integer shifts are slices of it
+        if th not in warped:
+            B, MB, M = _rotated(zmb, th, cb, (ca[0] + R, ca[1] + R),
+                                (H + 2 * R, W + 2 * R), (med[0], med[1]))
+            warped[th] = B.ravel(), MB.ravel(), M
+        B, MB, M = warped[th]
+        at = base - j * (W + 2 * R) - i
+        both = MB[at]
+        r = _pearson(a[both][None], B[at][both][None].astype(np.float64), None, 64)[0]
+        M = M.copy()
+        M[:, 2] += (i - R, j - R)
         return (r if np.isfinite(r) else -np.inf), M
 
-    x, y, t = med
-    val, M = corr(x, y, t)
-    moves, dt = 1.0, step / 2.0
-    for _ in range(3):          # translation steps 1 px, then angle steps step/2, /4, /8
+    i = j = 0
+    t = med[2]
+    val, M = corr(i, j, t)
+    dt = step / 2.0
+    for _ in range(3):          # translation steps of 1 px, angle steps step/2, /4, /8
         improved = True
         while improved:
             improved = False
-            for ddx, ddy, ddt in ((moves, 0, 0), (-moves, 0, 0), (0, moves, 0),
-                                  (0, -moves, 0), (0, 0, dt), (0, 0, -dt)):
-                nx, ny, nt = x + ddx, y + ddy, t + ddt
-                if abs(nx - med[0]) > radius or abs(ny - med[1]) > radius \
-                        or abs(nt - med[2]) > step:
+            for di, dj, ddt in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0),
+                                (0, 0, dt), (0, 0, -dt)):
+                ni, nj, nt = i + di, j + dj, t + ddt
+                if abs(ni) > R or abs(nj) > R or abs(nt - med[2]) > step:
                     continue
-                v, Mv = corr(nx, ny, nt)
+                v, Mv = corr(ni, nj, nt)
                 if v > val:
-                    val, M, x, y, t, improved = v, Mv, nx, ny, nt, True
+                    val, M, i, j, t, improved = v, Mv, ni, nj, nt, True
         dt /= 2.0
-    return (float(val) if np.isfinite(val) else float("nan")), Pose(float(x), float(y), float(t), M)
+    return (float(val) if np.isfinite(val) else float("nan")), \
+        Pose(float(med[0] + i), float(med[1] + j), float(t), M)

@@ -276,6 +276,10 @@ def _solve_metrics(p, sc, keep=None):
     ve = getattr(res, "ve", None)
     if ve is not None:  # ground-truth-free validation error (psbench.solve.validation)
         row.update(ve_mean=_f(ve.mean), ve_median=_f(ve.median))
+    fb = getattr(res, "fallback", None)
+    if fb is not None:  # pixels that fell back to the simpler answer (solve.fallback)
+        om = sc.mask if sc.mask is not None else np.ones(fb.shape, bool)
+        row["fallback_fraction"] = _f(float(fb[om].mean()) if om.any() else 0.0)
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
     if sc.truth is not None and np.shape(res.valid) == np.shape(sc.images):

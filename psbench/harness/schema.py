@@ -13,7 +13,9 @@ One row per run. Column groups:
   against those of true secondary fraction above ``t_sr`` (scenes rendered with
   ``bounces`` > 0), ``ve_mean`` / ``ve_median`` the mean and median of the
   ground-truth-free validation error map (``Result.ve``, :mod:`psbench.solve.validation`;
-  relative to each pixel's mean intensity), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
+  relative to each pixel's mean intensity), ``fallback_fraction`` the fraction of the
+  object pixels where the method fell back to its simpler answer (``Result.fallback``,
+  :mod:`psbench.solve.fallback`; null for methods without the fallback), NE fractions ``ne_lt*`` in 0..1, ``ie_rel`` in % of
   the images' dynamic range, ``ie_weighted`` the ring-weighted IE (Eq. 2.30, L2) of
   ``method=wps`` runs, times in seconds (``t_render``: render or read the images,
   0 when the scene came from the chunk's cache; ``t_solve``: the solve, after an
@@ -63,6 +65,7 @@ _METRICS = [
     ("cond", pa.float64()),
     ("ve_mean", pa.float64()),
     ("ve_median", pa.float64()),
+    ("fallback_fraction", pa.float64()),
     ("t_render", pa.float64()),
     ("t_solve", pa.float64()),
     ("t_total", pa.float64()),

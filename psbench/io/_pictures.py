@@ -25,6 +25,7 @@ from .._shared.files import atomic_write
 from ._common import cv2 as _cv2
 
 __all__ = ["NE_MAX", "BACKGROUND", "normal_rgb", "gray", "colorize", "ne_map", "ve_picture",
+           "fallback_picture",
            "error_picture", "valid_picture", "weights_picture", "height_picture",
            "titled", "montage", "color_bar", "hstack", "object_box", "write_png", "text_size",
            "font", "nice_ticks", "text_px", "scale_bar"]
@@ -324,6 +325,26 @@ def ve_picture(ve, object_mask=None, *, title=None):
                     size=fs)
     pic = hstack(img, bar, gap=fs // 2)
     return titled(pic, title, size=text_px(max(img.shape[:2]), least=16)) if title else pic
+
+
+#: colour of the pixels that fell back (fallback_picture)
+FALLBACK_RGB = (230, 120, 20)
+
+
+def fallback_picture(fallback, object_mask=None, *, background=None, title=None):
+    """The pixels where a method fell back to its simpler answer
+    (:mod:`psbench.solve.fallback`) in orange over ``background`` ((H, W) intensities,
+    e.g. the frontal image, in grey, black outside the object; None: the object in
+    light grey on white). Needs no ground truth."""
+    fb = np.asarray(fallback, dtype=bool)
+    m = np.ones(fb.shape, bool) if object_mask is None else np.asarray(object_mask, bool)
+    if background is None:
+        pic = np.where(m[..., None], np.uint8(200), np.uint8(255)).repeat(3, axis=-1)
+        pic = np.ascontiguousarray(pic, dtype=np.uint8)
+    else:
+        pic = gray(background, m).copy()
+    pic[fb & m] = FALLBACK_RGB
+    return titled(pic, title) if title else pic
 
 
 def valid_picture(images, valid, object_mask=None, *, truth=None, max_width=1200):

@@ -370,6 +370,14 @@ def write_outputs(path, result, *, object_mask=None, images=None, truth_normals=
         save_npy("ve.npy", vm)
         save_pic("ve.png", P.ve_picture(vm, m, title=f"mean ve {ve.mean:.4f} (held-out "
                                          f"error / pixel intensity)"))
+    fb = getattr(result, "fallback", None)
+    if fb is not None:  # where the richer fit fell back to its start (solve.fallback)
+        fb = np.asarray(fb, dtype=bool) & m
+        save_npy("fallback", fb)
+        frac = float(fb[m].mean()) if m.any() else 0.0
+        bg = None if imgs is None else imgs[_frontal(result, imgs)]
+        save_pic("fallback.png", P.fallback_picture(fb, m, background=bg, title=(
+            f"fell back on {100 * frac:.1f} % of the object pixels (orange)")))
     _write_masks(out, result, m, imgs, true_outliers, save_npy, save_pic, per_image,
                  written)
     hgt = getattr(result, "height", None)

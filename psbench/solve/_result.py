@@ -63,6 +63,12 @@ class Result:
         map ``ve.map`` (H, W) and ``ve.mean`` / ``ve.median``; the held-out errors of
         the Lambertian fit over the observations the solve used (``weights``, else
         ``valid``). Computed when first read.
+    fallback : (H, W) bool or None
+        Pixels where the method's richer fit did not predict the held-out observations
+        better than the simpler answer it started from and fell back to it
+        (:mod:`psbench.solve.fallback`; ``robust``: to the trimmed fit, ``tsfit``: to
+        its start); False outside ``object_mask``. None: the method has no fallback
+        (or it was switched off).
     """
 
     normals: np.ndarray
@@ -81,6 +87,7 @@ class Result:
     ring_weights: np.ndarray | None = None
     converged: Any = True
     ve: Any = Lazy(None)
+    fallback: Any = None
 
     @property
     def b(self) -> np.ndarray:

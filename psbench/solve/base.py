@@ -414,6 +414,13 @@ class Fit:
         ``thresholds``).
     result_type : type or None
         A :class:`~psbench.solve.Result` subclass to return (None: ``Result``).
+    heldout : tuple or None
+        ``(e, used, ve)``: the fit's held-out errors and used observations, (k, P)
+        float32 and bool over the object pixels, and its per-pixel validation error
+        (P,) float32 (:mod:`psbench.solve.validation`), for
+        a method that starts from this fit and falls back to it
+        (:mod:`psbench.solve.fallback`), or a function of no arguments returning it
+        (assembled only when asked for); None: not computed.
     """
 
     b: np.ndarray
@@ -427,6 +434,7 @@ class Fit:
     timings: dict = field(default_factory=dict)
     fields: dict = field(default_factory=dict)
     result_type: type | None = None
+    heldout: Any = None
 
 
 @dataclass(eq=False)

@@ -105,7 +105,7 @@ def lsq3(I, S, w):
     return x.astype(np.float32)
 
 
-def start_weights(problem, name, idx, I, valid):
+def start_weights(problem, name, idx, I, valid, *, want_heldout=False):
     """Run the start step ``name`` (already resolved) on the object pixels ``idx``.
 
     Parameters
@@ -123,9 +123,13 @@ def start_weights(problem, name, idx, I, valid):
         rho * n of the start.
     inliers : (k, P) bool
         The step's final weights >= 0.5 (all where it reports none), and ``valid``.
+    heldout : tuple or None, only with ``want_heldout``
+        The step's ``Fit.heldout`` (its held-out errors, used observations and
+        validation error over the object pixels) when it reports them, else None.
     """
     k = I.shape[0]
     w = None
+    heldout = None
     if name == "trimmed":
         b, w = trimmed(I, problem.S, valid)
     else:
@@ -136,6 +140,9 @@ def start_weights(problem, name, idx, I, valid):
             spec = registry.get("methods", name, what="start")
             fit = spec.func(problem, spec.options())
             bfull = fit.b
+            heldout = getattr(fit, "heldout", None)
+            if callable(heldout) and want_heldout:
+                heldout = heldout()
             wf = fit.weights if fit.weights is not None else fit.valid
             if wf is not None:
                 w = take(np.asarray(wf).reshape(k, -1), idx) >= 0.5
@@ -144,7 +151,8 @@ def start_weights(problem, name, idx, I, valid):
     bad = ~np.isfinite(b).all(axis=0)
     if bad.any():  # a start must never poison the fit
         b[:, bad] = lsq3(I[:, bad], problem.S, valid[:, bad].astype(np.float32))
-    return b, inliers
+        heldout = None   # no longer the start's errors there
+    return (b, inliers, heldout) if want_heldout else (b, inliers)
 
 
 #: pixels per chunk of the start's per-pixel work (bounds temporaries)

@@ -1,0 +1,263 @@
+"""The real breech-face study as runs of the benchmark harness (experiment ``breechface``).
+
+``psbench +experiment=breechface`` runs :func:`run` through
+:func:`psbench.analysis.breechface` (``kind=analysis``) and stores its json payload, one
+row per run. The scans are the X3P files of ``study["folder"]`` with their
+``guns.csv`` (:func:`~.scans.read_guns`; ``$PSBENCH_X3P``, default
+``../shared/data/forensic/weller``), optionally ``per_gun`` scans of each of ``guns``.
+A run is one ``part``:
+
+``method``
+    One method label (:data:`~.breechface.STUDY_METHODS`, or ``"recipe"``: psbench's
+    :func:`~.recipe.reconstruct_heights`) on every scan and finish: each scan rendered
+    by the rig simulator (:func:`~.breechface.render_scan`: the finish preset, the
+    scan's own pixel size, the Chapter 7 acquisition, camera-noise seed = the run's
+    ``seed``), solved, integrated by every integrator, band-passed; then every pair of
+    scans compared (:func:`~.cmc.cmc`: CMC count and CCFmax). Per scan: height error
+    against the scan (µm) and the stage times; per pair: the scores and their time.
+``scan``
+    The scans themselves compared (the identification's upper bound).
+``panels``
+    One same-gun pair (the first two scans of the first gun): scan, one rendered image
+    and the recipe's reconstruction of the second, and the CMC cells of the pair drawn
+    on both, for scans and for reconstructions (PNG pictures, base64).
+
+All scans are compared at one pixel size: scans of other pixel sizes are resampled to
+the coarsest (:func:`~.scans.resample`, with a warning). ``crop`` keeps the
+``crop`` x ``crop`` pixels of each scan where the scans hold the most data (the ``ci``
+scale: fewer pixels, the same pixel size and band-pass). The CMC
+translation tolerance is cmcR's 20 px at its 6.25 µm working resolution, i.e.
+``translation_tol_um`` = 125 µm, converted to pixels; the other CMC parameters are
+:data:`~.cmc.CMC_DEFAULTS`.
+"""
+from __future__ import annotations
+
+import base64
+import time
+import warnings
+
+import numpy as np
+
+from .._shared.checks import PsbenchError
+from . import breechface as bf
+from .cmc import CMC_DEFAULTS
+from .identify import bandpass
+
+__all__ = ["STUDY", "PARTS", "LABELS", "RECIPE", "run", "load_scans"]
+
+#: method label of psbench's recipe (:func:`psbench.forensic.reconstruct_heights`)
+RECIPE = "recipe"
+#: the method labels of ``part="method"`` runs
+LABELS = tuple(bf.STUDY_METHODS) + (RECIPE,)
+PARTS = ("method", "scan", "panels")
+#: defaults of the ``study`` run parameter
+STUDY = {"folder": None, "guns": None, "per_gun": None, "crop": None,
+         "finishes": ["brass", "nickel"], "integrators": ["poisson", "bilateral"],
+         "meter": "frame", "translation_tol_um": 125.0, "methods": None}
+
+
+def _options(study):
+    st = dict(STUDY)
+    extra = set(study or {}) - set(st)
+    if extra:
+        raise PsbenchError(f"study has unknown keys {sorted(extra)}; valid: {', '.join(st)}")
+    st.update(study or {})
+    from .presets import FINISH_PRESETS
+
+    for f in st["finishes"]:
+        if f not in FINISH_PRESETS:
+            raise PsbenchError(f"study finishes: {f!r} is not a finish preset; valid: "
+                               f"{', '.join(FINISH_PRESETS)}")
+    for m in st["methods"] or ():
+        if m not in LABELS:
+            raise PsbenchError(f"study methods: {m!r} is not known; valid: {', '.join(LABELS)}")
+    for i in st["integrators"]:
+        if i not in ("poisson", "bilateral"):
+            raise PsbenchError(f"study integrators: {i!r} is not known; valid: poisson, "
+                               "bilateral")
+    return st
+
+
+def load_scans(st):
+    """The study's scans: ``(names, heights, valid masks, guns, pixel size)``.
+
+    Heights (µm) NaN where missing; all at one pixel size (the coarsest of the scans),
+    resampled with a warning where needed; cropped to ``st["crop"]`` pixels if set.
+    """
+    from ..io import read_x3p
+    from .scans import read_guns, resample
+
+    table = read_guns(st["folder"])
+    if st["guns"] is not None:
+        want = [str(g) for g in st["guns"]]
+        missing = sorted(set(want) - set(table.gun.astype(str)))
+        if missing:
+            raise PsbenchError(f"study guns {missing} are not in guns.csv of "
+                               f"{st['folder'] or 'the scan folder'}")
+        table = table[table.gun.astype(str).isin(want)]
+    if st["per_gun"] is not None:
+        table = table.groupby("gun", sort=False).head(int(st["per_gun"]))
+    if len(table) < 2:
+        raise PsbenchError("the study needs at least 2 scans")
+    topos = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # x3pio's own warnings about the files
+        topos = [read_x3p(p) for p in table.path]
+    px = max(t.pixel_size for t in topos)
+    heights, valid = [], []
+    for name, t in zip(table.scan, topos):
+        z, v = t.height, t.valid & np.isfinite(t.height)
+        if abs(t.pixel_size - px) > 1e-6 * px:
+            warnings.warn(f"scan {name}: {t.pixel_size:g} um pixels resampled to the "
+                          f"study's {px:g} um", stacklevel=3)
+            z, v = resample(z, v, pixel_size=t.pixel_size, to=px)
+        heights.append(np.where(v, z, np.nan).astype(np.float32))
+        valid.append(v)
+    if st["crop"]:
+        heights, valid = _crop(heights, valid, int(st["crop"]))
+    return list(table.scan), heights, valid, list(table.gun.astype(str)), float(px)
+
+
+def _crop(heights, valid, c):
+    """The c x c window (one place for every scan) holding the most data of all scans."""
+    H, W = min(v.shape[0] for v in valid), min(v.shape[1] for v in valid)
+    c = min(c, H, W)
+    total = sum(v[:H, :W].astype(np.int32) for v in valid)
+    ii = np.pad(total.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    box = ii[c:, c:] - ii[:-c, c:] - ii[c:, :-c] + ii[:-c, :-c]
+    r, k = np.unravel_index(int(np.argmax(box)), box.shape)
+    return ([h[r:r + c, k:k + c] for h in heights], [v[r:r + c, k:k + c] for v in valid])
+
+
+def _recipe(integrator):
+    from .recipe import reconstruct_heights
+
+    def rec(images, lights, *, object_mask, pixel_size):
+        return reconstruct_heights(images, lights, object_mask=object_mask,
+                                   pixel_size=pixel_size, integrator=integrator)
+    return rec
+
+
+def _cmc_options(st, px):
+    return {"translation_tol": float(st["translation_tol_um"]) / px}
+
+
+def _scores(maps, valid, guns, px, st, **head):
+    sc = bf.score_pairs(maps, valid, guns, pixel_size=px, **_cmc_options(st, px))
+    for k, v in head.items():
+        sc.insert(0, k, v)
+    return sc.to_dict("records")
+
+
+def run(part="method", label=None, *, seed=0, study=None):
+    """One run of the breechface study (see the module docstring).
+
+    Parameters
+    ----------
+    part : {"method", "scan", "panels"}
+    label : str
+        Method label of a ``method`` run (:data:`LABELS`).
+    seed : int
+        Camera-noise seed of every rendering.
+    study : dict, optional
+        Overrides of :data:`STUDY`: ``folder`` (of the X3P scans and guns.csv),
+        ``guns`` and ``per_gun`` (a subset), ``crop`` (pixels: the square window holding
+        the most data), ``finishes``, ``integrators``, ``meter`` (exposure metering of
+        :func:`~.breechface.render_scan`), ``translation_tol_um``, ``methods`` (the
+        labels this scale runs; a ``method`` run of another label returns
+        ``{"skipped": True}`` at once).
+
+    Returns
+    -------
+    dict
+        json-able payload; tables are lists of records.
+    """
+    if part not in PARTS:
+        raise PsbenchError(f"part={part!r} is not known; valid choices: {', '.join(PARTS)}")
+    if part == "method" and label not in LABELS:
+        raise PsbenchError(f"part='method' needs label= one of {', '.join(LABELS)}, "
+                           f"got {label!r}")
+    st = _options(study)
+    if part == "method" and st["methods"] is not None and label not in st["methods"]:
+        return {"part": part, "label": label, "seed": int(seed), "skipped": True}
+    names, heights, valid, guns, px = load_scans(st)
+    gun = dict(zip(names, guns))
+    vmask = dict(zip(names, valid))
+    head = {"part": part, "label": label, "seed": int(seed), "pixel_size": px,
+            "scans": names, "guns": guns}
+    if part == "scan":
+        maps = {n: bandpass(np.where(v, h, 0.0), v, pixel_size=px,
+                            short=CMC_DEFAULTS["short"], long=CMC_DEFAULTS["long"])
+                for n, h, v in zip(names, heights, valid)}
+        return {**head, "scores": _scores(maps, vmask, gun, px, st, method=bf.SCAN,
+                                          integrator="-", finish="-")}
+    if part == "panels":
+        return {**head, **_panels(names, heights, valid, guns, px, st, seed)}
+    per_scan, scores = [], []
+    for finish in st["finishes"]:
+        maps = {}
+        for name, h, v in zip(names, heights, valid):
+            t0 = time.perf_counter()
+            if label == RECIPE:
+                recipes = {i: _recipe(i) for i in st["integrators"]}
+                m, rows = bf.reconstruct_scan(h, v, pixel_size=px, methods=(),
+                                              finish=finish, seed=seed, recipe=recipes,
+                                              meter=st["meter"])
+            else:
+                m, rows = bf.reconstruct_scan(h, v, pixel_size=px, methods=(label,),
+                                              integrators=tuple(st["integrators"]),
+                                              finish=finish, seed=seed, meter=st["meter"])
+            total = time.perf_counter() - t0
+            for (meth, integ), z in m.items():
+                if meth != bf.SCAN:
+                    maps.setdefault(integ, {})[name] = z
+            per_scan += [{**r, "finish": finish, "scan": name, "scan_s": total} for r in rows]
+        for integ, mm in maps.items():
+            scores += _scores(mm, vmask, gun, px, st, method=label, integrator=integ,
+                              finish=finish)
+    return {**head, "per_scan": per_scan, "scores": scores}
+
+
+def _png(img):
+    import cv2
+
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(img[..., ::-1]))
+    return base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def _panels(names, heights, valid, guns, px, st, seed):
+    """Scan, rendered image and recipe reconstruction of one same-gun pair, with cells."""
+    from ..io.x3p import Topography
+    from ._cmc_picture import _gray, cells_picture
+    from .cmc import cmc
+
+    first = guns[0]
+    idx = [i for i, g in enumerate(guns) if g == first][:2]
+    if len(idx) < 2:
+        raise PsbenchError(f"the panels need two scans of gun {first}; the study has one")
+    ia, ib = idx
+    finish = st["finishes"][0]
+    integ = st["integrators"][0]
+    topo = lambda n, z, v: Topography(height=np.where(v, z, np.nan).astype(np.float32),  # noqa: E731
+                                      valid=v, pixel_size=px, name=n)
+    opts = _cmc_options(st, px)
+    out = {"pair": [names[ia], names[ib]], "finish": finish, "integrator": integ}
+    ta, tb = topo(names[ia], heights[ia], valid[ia]), topo(names[ib], heights[ib], valid[ib])
+    r = cmc(ta.height, tb.height, ta.valid, tb.valid, pixel_size=px, **opts)
+    out["scan_cells"] = _png(cells_picture(r, ta, tb))
+    out["scan_count"], out["scan_ccf"] = int(r.count), float(r.ccf)
+    recon = []
+    for i in (ia, ib):
+        acq = bf.render_scan(heights[i], valid[i], pixel_size=px, finish=finish, seed=seed,
+                             meter=st["meter"])
+        if i == ib:
+            k = int(np.argmin(acq.lights.directions[:, 2]))     # a 62 deg image: no clipping
+            img = acq.images[k].astype(np.float32) / float(np.iinfo(acq.images.dtype).max)
+            out["image"] = _png(_gray(img, valid[i]))
+        recon.append(_recipe(integ)(acq.images, acq.lights, object_mask=valid[i],
+                                    pixel_size=px))
+    ra, rb = topo(names[ia], recon[0], valid[ia]), topo(names[ib], recon[1], valid[ib])
+    r = cmc(ra.height, rb.height, ra.valid, rb.valid, pixel_size=px, **opts)
+    out["recipe_cells"] = _png(cells_picture(r, ra, rb))
+    out["recipe_count"], out["recipe_ccf"] = int(r.count), float(r.ccf)
+    return out

@@ -1,0 +1,82 @@
+"""Experiment breechface: its ci scale end to end on the shared scans, the page's logic."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from psbench import PsbenchError
+from psbench.experiments import breechface as E
+from psbench.forensic import breechface_runs as R
+from psbench.forensic.scans import scans_folder
+from psbench.harness.app import main
+from psbench.harness.grid import expand, load
+from psbench.harness.store import read_store
+from psbench.report.cli import build
+
+needs_scans = pytest.mark.skipif(not (scans_folder() / "guns.csv").is_file(),
+                                 reason="the shared X3P scans are not here ($PSBENCH_X3P)")
+
+
+def test_grid_runs_every_label_the_scan_and_the_panels():
+    runs = expand(load("breechface"), "full")
+    labels = [r["args"].get("label") for r in runs if r["args"]["part"] == "method"]
+    assert labels == list(R.LABELS)
+    assert sorted(r["args"]["part"] for r in runs if r["args"]["part"] != "method") == [
+        "panels", "scan"]
+    ci = expand(load("breechface"), "ci")
+    assert {tuple(r["study"]["methods"]) for r in ci} == {("None", "Th-Hi-Re-Sh", "recipe")}
+
+
+@pytest.mark.parametrize("kwargs, word", [
+    ({"part": "nope"}, "part"),
+    ({"part": "method", "label": "Th-nope"}, "label"),
+    ({"part": "scan", "study": {"gunz": 1}}, "gunz"),
+    ({"part": "scan", "study": {"finishes": ["gold"]}}, "finishes"),
+    ({"part": "scan", "study": {"integrators": ["spline"]}}, "integrators"),
+    ({"part": "scan", "study": {"methods": ["magic"]}}, "methods"),
+])
+def test_bad_input(kwargs, word):
+    with pytest.raises(PsbenchError, match=word):
+        R.run(**kwargs)
+
+
+def test_a_label_outside_the_scale_is_skipped_at_once():
+    out = R.run("method", "robust", study={"methods": ["None"]})
+    assert out["skipped"] is True and "scores" not in out
+
+
+@needs_scans
+def test_unknown_gun_is_named():
+    with pytest.raises(PsbenchError, match="99"):
+        R.run("scan", study={"guns": ["99"]})
+
+
+def test_empty_aggregate_is_inconclusive():
+    agg = E.aggregate(pd.DataFrame({"payload": []}))
+    assert agg.empty
+    assert all(v.status == "INCONCLUSIVE" for v in E.verdicts(agg))
+
+
+@needs_scans
+def test_ci_scale_end_to_end(tmp_path):
+    root = tmp_path / "results"
+    main(["+experiment=breechface", "scale=ci", "jobs=1", f"results_dir={root}"])
+    rows = read_store(root, experiment="breechface")
+    assert len(rows) == 9 and set(rows["status"]) == {"ok"}
+    agg = E.aggregate(rows[rows.status == "ok"])
+    assert set(agg["part"]) == {"brass"}
+    got = set(agg["row"])
+    assert got == {"scan", "None / poisson", "Th-Hi-Re-Sh / poisson", "recipe / poisson"}
+    sc = agg.attrs["scores"]
+    assert len(sc) == 4 * 6 and sc.same_gun.sum() == 4 * 2       # 4 maps x 6 pairs
+    # every value the page shows is a number; the scans separate at this scale
+    assert agg["value"].notna().all()
+    auc = agg[(agg.row == "scan") & (agg.column == "AUC CMC")]["value"].item()
+    assert 0.5 <= auc <= 1.0
+    assert len(E.verdicts(agg)) == 4
+    assert [n for n, _ in E.figures(agg)] == ["breechface_roc", "breechface_scores",
+                                              "breechface_pair"]
+    out = tmp_path / "reports"
+    build(root, out, "ci", log=lambda *a: None, experiments=("breechface",))
+    md = (out / "breechface.md").read_text()
+    assert md.startswith("# Real breech faces") and "recipe / poisson" in md
