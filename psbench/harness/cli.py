@@ -131,6 +131,9 @@ def main(args=None):
             p.add_argument("--experiment", default=None)
             p.add_argument("--by", default=None, help="comma-separated columns (default sweep,mask)")
     args = ap.parse_args(args)
+    from .._shared.warn import install
+
+    install()                           # store warnings as one psbench line each
     fn = {"ls": _ls, "summary": _summary, "compact": _compact, "verify": _verify}[args.cmd]
     try:
         return fn(args)

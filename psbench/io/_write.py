@@ -142,7 +142,7 @@ def write_dataset(path, images, lights, *, object_mask=None, normals=None, bits=
             n = int(np.count_nonzero((imgs < 0.0) | (imgs > 1.0)))
             warnings.warn(f"write_dataset: {n} image values outside [0, 1] (min {lo:g}, max "
                           f"{hi:g}) are clipped to [0, 1] in {path}; scale the images first "
-                          "to keep them", PsbenchWarning, stacklevel=2)
+                          "to keep them", PsbenchWarning, stacklevel=3)   # past renamed_args
     lay = lights if isinstance(lights, Layout) else _layout(np.asarray(lights, dtype=float))
     if lay.k != k:
         raise PsbenchError(f"lights has {lay.k} directions for {k} images")

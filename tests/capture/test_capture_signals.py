@@ -16,12 +16,13 @@ _BIN = Path(sys.executable).parent / "psbench-capture"
 def _start(tmp_path, out="cap"):
     """A capture frozen (SIGSTOP) mid-capture, once its first LED frame is written: a
     signal sent now lands mid-capture however loaded the machine is (a capture left
-    running could reach its last frame before the signal arrives)."""
-    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=768", f"out={out}", "progress=false"],
+    running could reach its last frame before the signal arrives), so a small capture
+    will do."""
+    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=256", f"out={out}", "progress=false"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     t0 = time.time()
-    while time.time() - t0 < 180 and not list(tmp_path.glob(f".{out}.partial-*/001.png")):
+    while time.time() - t0 < 600 and not list(tmp_path.glob(f".{out}.partial-*/001.png")):
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.02)
     proc.send_signal(signal.SIGSTOP)

@@ -305,6 +305,11 @@ def _stop_one_run(pid):
         with contextlib.suppress(psutil.Error):
             for run in w.children():
                 run.suspend()
+                # the stop takes effect once the process is scheduled: wait for it
+                t0 = time.time()
+                while run.status() not in (psutil.STATUS_STOPPED, psutil.STATUS_ZOMBIE) \
+                        and time.time() - t0 < 30:
+                    time.sleep(0.01)
                 if run.status() == psutil.STATUS_STOPPED:
                     return w
                 run.resume()                   # was exiting: not mid-run

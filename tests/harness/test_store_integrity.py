@@ -114,6 +114,26 @@ def test_verify_names_a_flipped_data_byte(tmp_path, capsys):
     assert "a2.parquet" in out and "1 problem(s)" in out
 
 
+def test_results_cli_names_a_damaged_file_in_one_line(tmp_path):
+    """``psbench-results`` prints a store warning as one ``psbench: warning:`` line on
+    stderr (not Python's file:line and source line), like the other commands."""
+    import pyarrow.parquet as pq
+
+    p = store.write_row(tmp_path, _row("a1"))
+    meta = pq.ParquetFile(p).metadata.row_group(0)
+    col = next(meta.column(i) for i in range(meta.num_columns)
+               if meta.column(i).path_in_schema == "ne_mean")
+    b = bytearray(p.read_bytes())
+    b[col.data_page_offset + col.total_compressed_size - 1] ^= 0x10
+    p.write_bytes(bytes(b))
+    exe = Path(sys.executable).parent / "psbench-results"
+    r = subprocess.run([str(exe), "ls", "--root", str(tmp_path)], capture_output=True,
+                       text=True, timeout=240)
+    assert r.returncode == 0 and "no runs stored" in r.stdout, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("psbench: warning: ") and p.name in lines[0]
+
+
 def test_dead_writers_temporary_files(tmp_path, capsys):
     """S7: a temporary file of a killed writer is reported by verify and removed by
     compact; one of a live writer is left alone."""

@@ -61,8 +61,9 @@ def test_write_dataset_warns_when_it_clips(tmp_path):
     imgs = np.full((3, 4, 4), 0.5)
     imgs[0, 0, 0] = 5.0
     lights = np.array([[0, 0, 1.0], [0.6, 0, 0.8], [0, 0.6, 0.8]])
-    with pytest.warns(PsbenchWarning, match=r"1 image values outside \[0, 1\].*max 5"):
+    with pytest.warns(PsbenchWarning, match=r"1 image values outside \[0, 1\].*max 5") as rec:
         write_dataset(tmp_path / "d", imgs, lights)
+    assert rec[0].filename == __file__                  # points at the caller's line
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
