@@ -278,7 +278,7 @@ def _solve_metrics(p, sc, keep=None):
         row.update(ve_mean=_f(ve.mean), ve_median=_f(ve.median))
     fb = getattr(res, "fallback", None)
     if fb is not None:  # pixels that fell back to the simpler answer (solve.fallback)
-        om = sc.mask if sc.mask is not None else np.ones(fb.shape, bool)
+        om = sc.object_mask if sc.object_mask is not None else np.ones(fb.shape, bool)
         row["fallback_fraction"] = _f(float(fb[om].mean()) if om.any() else 0.0)
     dr = sc.dynamic_range()
     row["ie_rel"] = _f(100.0 * row["ie_l2"] / dr) if row["ie_l2"] is not None and dr > 0 else None
