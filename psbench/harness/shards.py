@@ -151,8 +151,10 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
             if attempt == POOL_RESTARTS:
                 prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
                                   "runs are stored: run the same command again to resume\n")
-                results.extend({"run_id": run_id(p), "status": "failed", "error": lost,
-                                "t_total": None} for c in pending for p in c)
+                failed = [{"run_id": run_id(p), "status": "failed", "error": lost,
+                           "t_total": None} for c in pending for p in c]
+                prog.update(len(failed), len(failed))   # the summary counts them too
+                results.extend(failed)
                 return results
             prog.stream.write(f"\na worker process was lost ({lost}); restarting the pool "
                               f"for the {sum(map(len, pending))} runs not stored\n")
