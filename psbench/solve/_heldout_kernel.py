@@ -25,7 +25,7 @@ from numba import njit, prange
 from ._sym3 import HELDOUT_RCOND, inv_sym3
 from .methods.tsfit._kernel import _acos, _expm, _light
 
-__all__ = ["lambert_errors", "ts_errors", "LEVER"]
+__all__ = ["lambert_errors", "ts_errors", "abs_median", "LEVER"]
 
 #: pixels per prange task
 BLOCK = 256
@@ -106,12 +106,16 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
             for i in range(k):
                 dx, dy, dz, hx, hy, hz, mu = _light(tab, i)
                 c = dx * nx + dy * ny + dz * nz
+                wi = float(w[i, p])
+                if c <= 0.0:    # self shadow: the model is 0 and so is its gradient
+                    R[i] = float(I[i, p])
+                    J[i, 0], J[i, 1], J[i, 2] = 0.0, 0.0, 0.0
+                    continue
                 ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
                 th = _acos(ch)
                 e = _expm(m2 * th * th)
-                f = mu * (rdp * c + rsp * e) if c > 0.0 else 0.0
-                R[i] = float(I[i, p]) - f
-                if c > 0.0:
+                R[i] = float(I[i, p]) - mu * (rdp * c + rsp * e)
+                if wi > 0.0:    # the gradient is needed for the observations fitted
                     sn = math.sqrt(max(1.0 - ch * ch, 0.0))
                     bt = kap * e * (th / sn if sn > 1e-6 else 1.0)
                     jx = mu * (dx + bt * (hx - ch * nx))
@@ -120,7 +124,6 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
                 else:
                     jx = jy = jz = 0.0
                 J[i, 0], J[i, 1], J[i, 2] = jx, jy, jz
-                wi = float(w[i, p])
                 if wi > 0.0:
                     a00 += wi * jx * jx
                     a01 += wi * jx * jy
@@ -142,3 +145,75 @@ def ts_errors(tab, I, w, n, rd, rs, m, out):
                     out[i, p] = R[i] / (1.0 - h) if 1.0 - h > LEVER else np.nan
                 else:
                     out[i, p] = R[i]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def abs_median(e, used, out):
+    """Median of |e_i| over each pixel's used, finite held-out errors; NaN where none.
+
+    e (k, n) float32; used (k, n) uint8 or bool; out (n,) float32. Bit for bit
+    ``np.nanmedian`` of the same values (an even count averages the two middle values
+    in float32), without its masked-array sort of the whole (k, n) block."""
+    k, n = e.shape
+    nb = (n + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        lo, hi = blk * BLOCK, min(n, (blk + 1) * BLOCK)
+        # gather light by light (rows are contiguous in pixels), select pixel by pixel
+        bufs = np.empty((hi - lo, k), dtype=np.float32)
+        cnt = np.zeros(hi - lo, dtype=np.int64)
+        for i in range(k):
+            for p in range(lo, hi):
+                v = e[i, p]
+                if used[i, p] and math.isfinite(v):
+                    bufs[p - lo, cnt[p - lo]] = abs(v)
+                    cnt[p - lo] += 1
+        for p in range(lo, hi):
+            buf = bufs[p - lo]
+            c = cnt[p - lo]
+            if c == 0:
+                out[p] = np.nan
+                continue
+            h = c // 2
+            hi_v = _select(buf, c, h)
+            if c % 2 == 1:
+                out[p] = hi_v
+            else:
+                lo_v = buf[0]  # after the selection buf[:h] holds the h smallest
+                for i in range(1, h):
+                    if buf[i] > lo_v:
+                        lo_v = buf[i]
+                out[p] = np.float32(lo_v + hi_v) / np.float32(2.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _select(a, c, h):
+    """The h-th smallest of a[:c] (0-based), partitioning a[:c] in place so that a[:h]
+    holds the h smallest (Hoare's selection; a value is selected, never computed)."""
+    lo, hi = 0, c - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        # median of three as the pivot
+        if a[mid] < a[lo]:
+            a[mid], a[lo] = a[lo], a[mid]
+        if a[hi] < a[lo]:
+            a[hi], a[lo] = a[lo], a[hi]
+        if a[hi] < a[mid]:
+            a[hi], a[mid] = a[mid], a[hi]
+        pivot = a[mid]
+        i, j = lo, hi
+        while i <= j:
+            while a[i] < pivot:
+                i += 1
+            while a[j] > pivot:
+                j -= 1
+            if i <= j:
+                a[i], a[j] = a[j], a[i]
+                i += 1
+                j -= 1
+        if h <= j:
+            hi = j
+        elif h >= i:
+            lo = i
+        else:
+            return a[h]
+    return a[h]

@@ -109,14 +109,10 @@ def ts_heldout(I, table, w, n, rd, rs, m):
 def validation_map(e, used, I):
     """Per-pixel validation error (n,) float32: median |e| over the used observations
     divided by the pixel's mean observation (see the module docstring)."""
-    used = np.asarray(used) > 0
-    a = np.where(used & np.isfinite(e), np.abs(e), np.nan)
+    used = np.ascontiguousarray(np.asarray(used) > 0)
     cnt = used.sum(axis=0)
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(a, axis=0)
+    med = np.empty(used.shape[1], dtype=np.float32)
+    _hk.abs_median(np.ascontiguousarray(e, dtype=np.float32), used.view(np.uint8), med)
     s = I.mean(axis=0, dtype=np.float64)
     floor = 1e-6 * max(float(s.mean()), 1e-30)
     out = (med / np.maximum(s, floor)).astype(np.float32)

@@ -1,4 +1,6 @@
 """Ground-truth-free validation error (psbench.solve.validation, Result.ve)."""
+import warnings
+
 import numpy as np
 import pytest
 
@@ -80,3 +82,24 @@ def test_tsfit_and_robust_ve_of_their_model():
         ve = ps.solve(sc.images, lay, method=method, object_mask=surf.object_mask).ve
         assert ve.map.shape == surf.object_mask.shape
         assert ve.median < 0.1 * lam.median  # the fitted model explains the highlights
+
+
+def test_validation_map_median_is_nanmedian_bit_for_bit():
+    """The compiled median of |e| over the used, finite errors equals numpy's nanmedian
+    of the same values exactly: odd and even counts, ties, NaN and inf, empty pixels."""
+    from psbench.solve import _heldout_kernel as hk
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        k, n = int(rng.integers(1, 100)), int(rng.integers(1, 600))
+        e = rng.normal(size=(k, n)).astype(np.float32)
+        if trial % 2:
+            e = np.round(e, 1)          # many ties
+        e[rng.random((k, n)) < 0.1] = np.nan
+        e[rng.random((k, n)) < 0.02] = np.inf
+        used = rng.random((k, n)) < rng.random()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ref = np.nanmedian(np.where(used & np.isfinite(e), np.abs(e), np.nan), axis=0)
+        out = np.empty(n, np.float32)
+        hk.abs_median(e, used.view(np.uint8), out)
+        np.testing.assert_array_equal(out, ref)
