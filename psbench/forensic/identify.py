@@ -237,8 +237,11 @@ def _peak(r, radius=None):
     v = float(r[y, x])
 
     def sub(c, minus, plus):
+        # a neighbour outside the search radius (or an empty map) is -inf: no refinement
+        if not (np.isfinite(c) and np.isfinite(minus) and np.isfinite(plus)):
+            return 0.0
         d = minus - 2 * c + plus
-        if not np.isfinite(d) or d >= 0:
+        if d >= 0:
             return 0.0
         return float(np.clip(0.5 * (minus - plus) / d, -0.5, 0.5))
 
