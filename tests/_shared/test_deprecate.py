@@ -13,6 +13,7 @@ from psbench import calibrate as cal
 from psbench import io, metrics as M
 from psbench._shared.deprecation import renamed_args
 from psbench.integrate import gradients
+from psbench.report import panels
 from psbench.render.shadowmap import point_shadow_map
 
 
@@ -159,6 +160,16 @@ CASES = {
                                 lambda: ps.layout("45x4", power=2.0)),
     "encode_normals": (lambda: io.encode_normals(N, OBJ),
                        lambda: io.encode_normals(N, object_mask=OBJ)),
+    "panels.encode_normals positional": (lambda: panels.encode_normals(N, OBJ),
+                                         lambda: panels.encode_normals(N, object_mask=OBJ)),
+    "panels.encode_normals mask=": (lambda: panels.encode_normals(N, mask=OBJ),
+                                    lambda: panels.encode_normals(N, object_mask=OBJ)),
+    "panels.overlay positional": (
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], OBJ),
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], object_mask=OBJ)),
+    "panels.overlay mask=": (
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], mask=OBJ),
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], object_mask=OBJ)),
     "hot_pixels": (lambda: cal.hot_pixels(DARK, 0.5), lambda: cal.hot_pixels(DARK, threshold=0.5)),
     "remove_hot_pixels": (lambda: cal.remove_hot_pixels(WHITE, DARK > 0.5, 5),
                           lambda: cal.remove_hot_pixels(WHITE, DARK > 0.5, ksize=5)),
@@ -234,3 +245,4 @@ def test_dataset_mask_alias(tmp_path):
     assert old.object_mask is OBJ
     with pytest.raises(TypeError, match="both"):
         io.Dataset(ds.images, ds.lights, OBJ, None, ds.names, mask=OBJ)
+
