@@ -246,3 +246,27 @@ def test_dataset_mask_alias(tmp_path):
     with pytest.raises(TypeError, match="both"):
         io.Dataset(ds.images, ds.lights, OBJ, None, ds.names, mask=OBJ)
 
+
+# ----------------------------------------------------------------------------- renamed names
+@pytest.mark.parametrize("module, old, new", [
+    ("psbench.analysis", "KINDS", "IMAGE_KINDS"),
+    ("psbench.analysis.builtin", "KINDS", "IMAGE_KINDS"),
+    ("psbench.analysis._common", "KINDS", "IMAGE_KINDS"),
+    ("psbench.report.present", "KINDS", "CELL_KINDS"),
+    ("psbench.report.present", "kind", "cell_kind"),
+    ("psbench.report.gate", "metric_kind", "cell_kind"),
+    ("psbench.integrate", "METHODS", "INTEGRATORS"),
+    ("psbench.forensic.pipeline", "METHODS", "RECIPES"),
+    ("psbench.harness.run", "KINDS", "RUN_KINDS"),
+])
+def test_renamed_module_names(module, old, new):
+    import importlib
+    mod = importlib.import_module(module)
+    assert old not in getattr(mod, "__all__", ())      # star imports do not warn
+    with pytest.warns(DeprecationWarning, match=f"{module}.{old} is deprecated.*{new}"):
+        value = getattr(mod, old)
+    assert value is getattr(mod, new)
+    with pytest.warns(DeprecationWarning, match=new):
+        exec(f"from {module} import {old}", {})
+    with pytest.raises(AttributeError, match="no attribute"):
+        getattr(mod, old + "_NOPE")
