@@ -461,7 +461,7 @@ def integrate(normals, *, object_mask=None, integrator="poisson", datum="min", n
     if integrator == "bilateral":
         from .bilateral import bilateral_integrate
 
-        return bilateral_integrate(n, object_mask, datum=datum)
+        return bilateral_integrate(n, object_mask=object_mask, datum=datum)
     m = None if object_mask is None else as_mask(object_mask, (H, W), "object_mask")
     if m is not None and not m.any():
         return np.zeros((H, W), dtype=np.float32)

@@ -12,7 +12,7 @@ import psbench as ps
 from psbench import calibrate as cal
 from psbench import io, metrics as M
 from psbench._shared.deprecation import renamed_args
-from psbench.integrate import gradients
+from psbench.integrate import bilateral_integrate, gradients
 from psbench.report import panels
 from psbench.render.shadowmap import point_shadow_map
 
@@ -132,6 +132,9 @@ CASES = {
     "solve integrate_method=": (
         lambda: ps.solve(SCENE.images, LAY, mask="Th-Sh", integrate_method="fc", want_height=True).height,
         lambda: ps.solve(SCENE.images, LAY, mask="Th-Sh", integrator="fc", want_height=True).height),
+    "bilateral_integrate positional": (
+        lambda: bilateral_integrate(N, OBJ, max_iter=3),
+        lambda: bilateral_integrate(N, object_mask=OBJ, max_iter=3)),
     "gradients": (lambda: gradients(N, OBJ), lambda: gradients(N, object_mask=OBJ)),
     "shadow_map mask=": (lambda: ps.shadow_map(H, LAY, mask=OBJ),
                          lambda: ps.shadow_map(H, LAY, object_mask=OBJ)),
