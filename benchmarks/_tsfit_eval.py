@@ -36,10 +36,10 @@ def problem(images, lights, object_mask, mask="None", *, seed=0, truth=None):
                    mask=mask, seed=seed, truth_normals=truth, _start=lambda: b)
 
 
-def _ne(b, truth, mask):
+def _ne(b, truth, object_mask):
     n = b / np.maximum(np.linalg.norm(b, axis=2, keepdims=True), 1e-12)
     e = np.degrees(np.arccos(np.clip((n * truth).sum(-1), -1.0, 1.0)))
-    return float(e[mask].mean())
+    return float(e[object_mask].mean())
 
 
 def noise_comparison(surface="sombrero2", lights="45x16", noises=(0.0, 0.05, 0.1, 0.2), *,

@@ -30,16 +30,16 @@ def case(N, masked, seed=0):
         n[disc, 0] = x[disc] / R
         n[disc, 1] = y[disc] / R
         n[disc, 2] = np.sqrt(np.maximum(R ** 2 - rr[disc], 0)) / R
-        mask = disc & ~((np.abs(y) < N / 64) & (x > 0))  # notch: a harder silhouette
+        object_mask = disc & ~((np.abs(y) < N / 64) & (x > 0))  # notch: a harder silhouette
     else:
         k = 2 * np.pi / N
         p = 20 * k * np.cos(3 * k * x) * np.cos(2 * k * y) * 3
         q = -20 * k * np.sin(3 * k * x) * np.sin(2 * k * y) * 2
         n = np.dstack([-p, -q, np.ones_like(p)])
-        mask = None
+        object_mask = None
     rng = np.random.default_rng(seed)
     n = n + 0.02 * rng.normal(size=n.shape)  # estimated normals are noisy
-    return n.astype(np.float32), mask
+    return n.astype(np.float32), object_mask
 
 
 def bench(fn, repeat):

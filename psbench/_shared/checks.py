@@ -64,15 +64,17 @@ def as_images(images, name="images", *, min_count=1):
     return arr
 
 
-def as_mask(mask, shape, name="object_mask"):
-    """Return a bool (H, W) mask; None means all True.
+def as_mask(region, shape, name="object_mask"):
+    """Return ``region`` as a bool (H, W) array; None means all True.
 
-    Accepts bool arrays and numeric arrays holding only 0 and 1; anything else
-    (fractions, NaN, 255, strings) is refused rather than guessed.
+    ``region`` is a pixel region (an object mask, a validity map), ``name`` the
+    argument it came from, named in the error. Accepts bool arrays and numeric arrays
+    holding only 0 and 1; anything else (fractions, NaN, 255, strings) is refused
+    rather than guessed.
     """
-    if mask is None:
+    if region is None:
         return np.ones(shape, dtype=bool)
-    m = np.asarray(mask)
+    m = np.asarray(region)
     if m.shape != tuple(shape):
         raise PsbenchError(f"{name} must have shape {tuple(shape)}, got {m.shape}")
     if m.dtype == bool:

@@ -4,11 +4,12 @@ from __future__ import annotations
 import numpy as np
 
 from .._shared.checks import PsbenchError, choice
+from .._shared.deprecation import renamed_names
 
-__all__ = ["KINDS"]
+__all__ = ["IMAGE_KINDS"]
 
-#: image kinds -> render options
-KINDS = {"Di": dict(model="lambert", shadows="none"),
+#: image kinds (the ``kind=`` of the analyses) -> render options (formerly ``KINDS``)
+IMAGE_KINDS = {"Di": dict(model="lambert", shadows="none"),
          "Di-clamped": dict(model="lambert", shadows="self"),
          "Hi-Sh": dict(model="ts", shadows=True)}
 
@@ -35,7 +36,7 @@ def _seq(x):
 
 def _render(surf, lights, kind, noise, seed, **kw):
     from ..render.scene import render
-    opts = dict(KINDS[choice(kind, tuple(KINDS), "kind")])
+    opts = dict(IMAGE_KINDS[choice(kind, tuple(IMAGE_KINDS), "kind")])
     opts.update(kw)
     return render(surf, lights, noise=noise, seed=seed, **opts)
 
@@ -68,3 +69,6 @@ def _edges(bins):
     if e.ndim != 1 or e.size < 2 or np.any(np.diff(e) <= 0):
         raise PsbenchError(f"bins must be an int or increasing edges, got {bins!r}")
     return e
+
+
+__getattr__ = renamed_names(globals(), {"KINDS": "IMAGE_KINDS"})

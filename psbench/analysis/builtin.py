@@ -4,7 +4,8 @@ Every function renders synthetic scenes (:func:`psbench.render.render`), solves 
 and measures errors; all are seeded and take a ``size`` so tests and CI can run them
 small. Plots are made elsewhere from the returned frames.
 
-Image kinds used throughout (thesis Figs. 4.3, 4.4, 4.7):
+Image kinds used throughout (the ``kind=`` of the analyses, ``IMAGE_KINDS``; thesis Figs.
+4.3, 4.4, 4.7):
 
 * ``"Di"`` (diffuse): ``model="lambert", shadows="none"`` -- images "without highlight
   and shadow" (thesis lines ~824, ~830): plain unclamped Lambert I = rho_d s . n, which
@@ -22,15 +23,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import KINDS  # noqa: F401  (public here)
+from ._common import IMAGE_KINDS  # noqa: F401  (public here)
 from ._common import _edges, _ne, _ps, _render, _ring, _seq, _sname, _surface, _surface_zenith
 from .._shared.checks import PsbenchError, choice
+from .._shared.deprecation import renamed_names
 from ..registry import Analysis
 
 __all__ = ["ne_vs_surface_zenith", "ie_decomposition", "ne_vs_image_count",
            "ne_vs_source_zenith", "propose_zeniths", "wps_table", "table_5_5", "table_5_6",
            "mask_scores", "highlight_truth_options", "diffuse_counts", "forensic", "breechface",
-           "KINDS", "TRUTHS"]
+           "IMAGE_KINDS", "TRUTHS"]
 
 _COUNTS_5_5 = (8, 12, 16, 24, 32)
 #: highlight ground-truth definitions compared by :func:`mask_scores` (labels of
@@ -510,3 +512,6 @@ ANALYSES = tuple(_spec(f) for f in (
     breechface, diffuse_counts, forensic, highlight_truth_options, ie_decomposition,
     mask_scores, ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
     table_5_5, table_5_6, wps_table))
+
+
+__getattr__ = renamed_names(globals(), {"KINDS": "IMAGE_KINDS"})

@@ -74,7 +74,7 @@ _WEIGHTS_AT = {"dilate_radius": 7, "smooth_sigma": 3.0}
 #: integrator label -> function(normals, object_mask) -> heights (pixel units)
 INTEGRATORS = {
     "poisson": lambda n, m: integrate(n, object_mask=m, integrator="poisson"),
-    "bilateral": lambda n, m: bilateral_integrate(n, m),
+    "bilateral": lambda n, m: bilateral_integrate(n, object_mask=m),
 }
 #: the method label of the ground-truth heights (upper bound of the identification)
 TRUTH = "ground truth"

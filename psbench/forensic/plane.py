@@ -245,24 +245,25 @@ def rotate_surface(surface, R, *, iterations=4):
         y += Y - yp
     z = _sample(h, x, y, W, H, cv2.INTER_CUBIC)
     new_h = Rf[2, 0] * x + Rf[2, 1] * y + Rf[2, 2] * z
-    mask = _sample(np.asarray(surface.object_mask, np.uint8), x, y, W, H, cv2.INTER_NEAREST) > 0
+    object_mask = _sample(np.asarray(surface.object_mask, np.uint8), x, y, W, H,
+                          cv2.INTER_NEAREST) > 0
     d_row, d_col = np.gradient(new_h)
     inv = 1.0 / np.sqrt(1.0 + d_col * d_col + d_row * d_row)
     normals = np.stack([-d_col * inv, d_row * inv, inv], axis=-1).astype(np.float32)
-    normals[~mask] = (0.0, 0.0, 1.0)
+    normals[~object_mask] = (0.0, 0.0, 1.0)
     if not hasattr(surface, "regions"):
-        return Surface(name=f"{surface.name}(rotated)", height=new_h, object_mask=mask,
+        return Surface(name=f"{surface.name}(rotated)", height=new_h, object_mask=object_mask,
                        normals=normals)
     regions = {k: _sample(v.astype(np.uint8), x, y, W, H, cv2.INTER_NEAREST) > 0
                for k, v in surface.regions.items()}
-    regions["case"] = mask
+    regions["case"] = object_mask
     albedo = _sample(np.asarray(surface.albedo, np.float32), x, y, W, H, cv2.INTER_CUBIC)
     pose = dict(surface.pose)
     prev = Plane.from_angles(pose.get("tilt", 0.0), pose.get("tilt_azimuth", 0.0)).normal
     now = Plane.from_normal(R @ prev)
     pose["tilt"], pose["tilt_azimuth"] = now.tilt, now.azimuth
-    return replace(surface, height=new_h, object_mask=mask, normals=normals, regions=regions,
-                   albedo=albedo, pose=pose)
+    return replace(surface, height=new_h, object_mask=object_mask, normals=normals,
+                   regions=regions, albedo=albedo, pose=pose)
 
 
 def reorient(surface, plane):

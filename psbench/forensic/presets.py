@@ -148,7 +148,7 @@ def acquire(surface, *, finish=None, lights=ACQUISITION["lights"], bits=ACQUISIT
                 shadows=bool(shadows), noise=0.0)
     images = sc.images
     gain = mean_level / max(float(images.mean(dtype=np.float64)), 1e-12)
-    mask = np.asarray(surface.object_mask, bool)
+    object_mask = np.asarray(surface.object_mask, bool)
     rng = np.random.default_rng(seed)
     out = np.empty(images.shape, np.uint8 if bits <= 8 else np.uint16)
     noise = np.empty(images.shape[1:], np.float32)
@@ -159,11 +159,11 @@ def acquire(surface, *, finish=None, lights=ACQUISITION["lights"], bits=ACQUISIT
             rng.standard_normal(dtype=np.float32, out=noise)
             noise *= np.float32(read_noise)
             img += noise
-        clipped += int(np.count_nonzero((img >= full) & mask))
+        clipped += int(np.count_nonzero((img >= full) & object_mask))
         np.clip(img, 0.0, full, out=img)
         np.rint(img, out=img)
         out[i] = img
-    saturated = clipped / max(int(mask.sum()) * len(images), 1)
+    saturated = clipped / max(int(object_mask.sum()) * len(images), 1)
     highlight, shadow = sc.highlight, sc.self_shadow | sc.cast_shadow
     lay_out = sc.lights
     del sc, images

@@ -33,6 +33,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.linalg import LinearOperator, cg
 
 from .._shared.checks import PsbenchError, as_mask
+from .._shared.deprecation import renamed_args
 
 __all__ = ["bilateral_integrate"]
 
@@ -58,7 +59,8 @@ def _dct_solver(H, W, scale):
     return LinearOperator((H * W, H * W), matvec=solve, dtype=np.float32)
 
 
-def bilateral_integrate(normals, object_mask=None, *, k=2.0, max_iter=150, tol=1e-4,
+@renamed_args(positional=("object_mask",))
+def bilateral_integrate(normals, *, object_mask=None, k=2.0, max_iter=150, tol=1e-4,
                         cg_tol=1e-3, cg_maxiter=500, datum="min", return_info=False):
     """Discontinuity-preserving integration of a normal map into heights.
 
@@ -67,7 +69,8 @@ def bilateral_integrate(normals, object_mask=None, *, k=2.0, max_iter=150, tol=1
     normals : (H, W, 3) array_like
         Normals (unit or albedo-scaled; only directions are used), finite.
     object_mask : (H, W) bool, optional
-        Pixels to integrate (default all). Edges leaving it are not used.
+        Pixels to integrate (default all). Edges leaving it are not used. Passing it
+        positionally still works, with a DeprecationWarning.
     k : float, default 2
         Sharpness of the sigmoid weights (the authors' default); larger cuts
         discontinuities more readily. Heights are in pixel units.
@@ -79,7 +82,7 @@ def bilateral_integrate(normals, object_mask=None, *, k=2.0, max_iter=150, tol=1
         Relative residual of each conjugate-gradient solve.
     cg_maxiter : int, default 500
     datum : {"min", "mean"}
-        Height origin per connected component of the mask: minimum 0 or mean 0.
+        Height origin per connected component of ``object_mask``: minimum 0 or mean 0.
     return_info : bool, default False
         Also return a dict: ``iterations``, ``energy`` (per round), ``cg_iterations``,
         ``wu``, ``wv`` ((H, W) final weights of the right / lower neighbour).
@@ -87,7 +90,7 @@ def bilateral_integrate(normals, object_mask=None, *, k=2.0, max_iter=150, tol=1
     Returns
     -------
     height : (H, W) float32
-        Heights in pixel units, 0 outside the mask.
+        Heights in pixel units, 0 outside ``object_mask``.
     info : dict
         Only with ``return_info``.
     """

@@ -146,13 +146,13 @@ def gradients(normals, *, object_mask=None, nz_min=NZ_MIN):
     return gcol, grow
 
 
-def _edge_targets(gcol, grow, mask):
+def _edge_targets(gcol, grow, object_mask):
     """Target differences on horizontal (H, W-1) and vertical (H-1, W) edges."""
     ex = 0.5 * (gcol[:, 1:] + gcol[:, :-1])
     ey = 0.5 * (grow[1:, :] + grow[:-1, :])
-    if mask is not None:
-        ex = np.where(mask[:, 1:] & mask[:, :-1], ex, 0.0)
-        ey = np.where(mask[1:, :] & mask[:-1, :], ey, 0.0)
+    if object_mask is not None:
+        ex = np.where(object_mask[:, 1:] & object_mask[:, :-1], ex, 0.0)
+        ey = np.where(object_mask[1:, :] & object_mask[:-1, :], ey, 0.0)
     return ex, ey
 
 
@@ -192,10 +192,10 @@ def _dct_solve(rhs, lam, dtype=np.float64):
     return sfft.idctn(c, type=2, norm="ortho", workers=-1, overwrite_x=True)
 
 
-def _poisson_dct(gcol, grow, mask):
+def _poisson_dct(gcol, grow, object_mask):
     """One DCT solve with zero targets on background / boundary edges (membrane)."""
     H, W = gcol.shape
-    ex, ey = _edge_targets(gcol, grow, mask)
+    ex, ey = _edge_targets(gcol, grow, object_mask)
     div = _divergence(ex, ey, (H, W))
     # The grid Laplacian with free (Neumann) ends is diagonal in the DCT-II basis.
     # Single precision DCT: ~3e-4 px error on a 1200 px relief at 2048², below
@@ -203,28 +203,28 @@ def _poisson_dct(gcol, grow, mask):
     return _dct_solve(div, _neumann_eigs(H, W), np.float32).astype(np.float64)
 
 
-def _components(mask):
-    """4-connected components of the mask: labels (H, W) int (0 = background), count."""
+def _components(object_mask):
+    """4-connected components of ``object_mask``: labels (H, W) int (0 = background), count."""
     from scipy import ndimage
 
-    return ndimage.label(mask)
+    return ndimage.label(object_mask)
 
 
-def _align_components(z, mask, *, label=None, ncomp=None):
-    """Shift every 4-connected component of ``mask`` so that its minimum is 0.
+def _align_components(z, object_mask, *, label=None, ncomp=None):
+    """Shift every 4-connected component of ``object_mask`` so that its minimum is 0.
 
     Separate components share no edge, so their relative offsets are not fixed
     by the normals; psbench assumes the objects rest on a common base plane.
     """
     if label is None:
-        label, ncomp = _components(mask)
+        label, ncomp = _components(object_mask)
     if ncomp <= 1:
         return z
-    lab = label[mask]
+    lab = label[object_mask]
     mins = np.full(ncomp + 1, np.inf)
-    np.minimum.at(mins, lab, z[mask])
+    np.minimum.at(mins, lab, z[object_mask])
     z = z.copy()
-    z[mask] -= mins[lab]
+    z[object_mask] -= mins[lab]
     return z
 
 
@@ -233,7 +233,7 @@ def _dot(a, b):
     return float(np.einsum("ij,ij->", a, b))
 
 
-def _poisson_cg(gcol, grow, mask, *, tol, maxiter):
+def _poisson_cg(gcol, grow, object_mask, *, tol, maxiter):
     """Exact masked least squares by conjugate gradients, DCT-preconditioned.
 
     Operator: Laplacian of the graph of in-mask edges (on the full grid; rows of
@@ -257,14 +257,14 @@ def _poisson_cg(gcol, grow, mask, *, tol, maxiter):
     if (H, W) != (H0, W0):
         pad = ((0, H - H0), (0, W - W0))
         gcol, grow = np.pad(gcol, pad), np.pad(grow, pad)
-        mask = np.pad(mask, pad)
-        z, it, ok = _poisson_cg(gcol, grow, mask, tol=tol, maxiter=maxiter)
+        object_mask = np.pad(object_mask, pad)
+        z, it, ok = _poisson_cg(gcol, grow, object_mask, tol=tol, maxiter=maxiter)
         return z[:H0, :W0], it, ok
-    ex, ey = _edge_targets(gcol, grow, mask)
+    ex, ey = _edge_targets(gcol, grow, object_mask)
     b = _divergence(ex, ey, (H, W))
     lam = _neumann_eigs(H, W)
-    wx = (mask[:, 1:] & mask[:, :-1]).astype(np.float64)
-    wy = (mask[1:, :] & mask[:-1, :]).astype(np.float64)
+    wx = (object_mask[:, 1:] & object_mask[:, :-1]).astype(np.float64)
+    wy = (object_mask[1:, :] & object_mask[:-1, :]).astype(np.float64)
 
     bx = np.empty((H, W - 1))
     by = np.empty((H - 1, W))
@@ -322,29 +322,29 @@ SMALL_COMPONENT = 2048
 SPARSE_FALLBACK = 1 << 20
 
 
-def _poisson_exact(gcol, grow, mask, *, tol, maxiter):
+def _poisson_exact(gcol, grow, object_mask, *, tol, maxiter):
     """Exact masked least squares: small components by sparse LU, the rest by CG."""
-    label, ncomp = _components(mask)
+    label, ncomp = _components(object_mask)
     sizes = np.bincount(label.ravel(), minlength=ncomp + 1)
     small = sizes <= SMALL_COMPONENT
     small[0] = False
-    z = np.zeros(mask.shape)
-    small_mask = small[label]
-    if small_mask.any():
-        z += _poisson_sparse(gcol, grow, small_mask)
-    big_mask = mask & ~small_mask
-    if big_mask.any():
-        zb, it, ok = _poisson_cg(gcol, grow, big_mask, tol=tol, maxiter=maxiter)
-        if not ok and big_mask.sum() <= SPARSE_FALLBACK:
+    z = np.zeros(object_mask.shape)
+    in_small = small[label]
+    if in_small.any():
+        z += _poisson_sparse(gcol, grow, in_small)
+    in_big = object_mask & ~in_small
+    if in_big.any():
+        zb, it, ok = _poisson_cg(gcol, grow, in_big, tol=tol, maxiter=maxiter)
+        if not ok and in_big.sum() <= SPARSE_FALLBACK:
             # ragged masks (near-percolating holes, thin mazes) defeat the DCT
             # preconditioner; fall back to the direct solver
-            zb = _poisson_sparse(gcol, grow, big_mask)
+            zb = _poisson_sparse(gcol, grow, in_big)
         elif not ok:
             warnings.warn(f"integrate: conjugate gradients stopped after {it} iterations "
                           f"above tol={tol:g}; heights are approximate (raise maxiter or "
                           f"use integrator='poisson-sparse')", RuntimeWarning, stacklevel=4)
-        z[big_mask] = zb[big_mask]
-    return _align_components(z, mask, label=label, ncomp=ncomp)
+        z[in_big] = zb[in_big]
+    return _align_components(z, object_mask, label=label, ncomp=ncomp)
 
 
 def _fc(gcol, grow):
@@ -371,22 +371,22 @@ def _fc(gcol, grow):
     return z[:H, :W].astype(np.float64)
 
 
-def _poisson_sparse(gcol, grow, mask):
+def _poisson_sparse(gcol, grow, object_mask):
     """Exact masked least squares with a sparse direct solver (reference method)."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
     from scipy.sparse.linalg import spsolve
 
     H, W = gcol.shape
-    ex, ey = _edge_targets(gcol, grow, mask)
+    ex, ey = _edge_targets(gcol, grow, object_mask)
     idx = -np.ones((H, W), dtype=np.int64)
-    n = int(mask.sum())
-    idx[mask] = np.arange(n)
+    n = int(object_mask.sum())
+    idx[object_mask] = np.arange(n)
     z = np.zeros((H, W), dtype=np.float64)
     if n == 0:
         return z
-    mx = mask[:, 1:] & mask[:, :-1]
-    my = mask[1:, :] & mask[:-1, :]
+    mx = object_mask[:, 1:] & object_mask[:, :-1]
+    my = object_mask[1:, :] & object_mask[:-1, :]
     a = np.concatenate([idx[:, :-1][mx], idx[:-1, :][my]])  # edge tail
     b = np.concatenate([idx[:, 1:][mx], idx[1:, :][my]])    # edge head
     g = np.concatenate([ex[mx], ey[my]])                     # z[b] - z[a] ~ g
@@ -405,7 +405,7 @@ def _poisson_sparse(gcol, grow, mask):
     if keep.any():
         Lk = L[keep][:, keep].tocsc()
         sol[keep] = spsolve(Lk, rhs[keep])
-    z[mask] = sol
+    z[object_mask] = sol
     return z
 
 
@@ -461,7 +461,7 @@ def integrate(normals, *, object_mask=None, integrator="poisson", datum="min", n
     if integrator == "bilateral":
         from .bilateral import bilateral_integrate
 
-        return bilateral_integrate(n, object_mask, datum=datum)
+        return bilateral_integrate(n, object_mask=object_mask, datum=datum)
     m = None if object_mask is None else as_mask(object_mask, (H, W), "object_mask")
     if m is not None and not m.any():
         return np.zeros((H, W), dtype=np.float32)
@@ -485,13 +485,13 @@ def integrate(normals, *, object_mask=None, integrator="poisson", datum="min", n
     return out
 
 
-def _integrate_box(n, m, method, nz_min, tol, maxiter):
+def _integrate_box(n, m, integrator, nz_min, tol, maxiter):
     gcol, grow = gradients(n, object_mask=m, nz_min=nz_min)
-    if method == "poisson-dct" or (method == "poisson" and m is None):
+    if integrator == "poisson-dct" or (integrator == "poisson" and m is None):
         z = _poisson_dct(gcol, grow, m)
-    elif method == "poisson":
+    elif integrator == "poisson":
         z = _poisson_exact(gcol, grow, m, tol=tol, maxiter=maxiter)
-    elif method == "fc":
+    elif integrator == "fc":
         z = _fc(gcol, grow)
     else:
         mm = np.ones(n.shape[:2], dtype=bool) if m is None else m

@@ -179,13 +179,13 @@ def camera(images, object_mask, drange, *, ambient, saturation, gamma):
     """
     if ambient == 0 and saturation is None and gamma == 1:
         return images
-    mask = np.asarray(object_mask, bool)
-    full = bool(mask.all())
+    object_mask = np.asarray(object_mask, bool)
+    full = bool(object_mask.all())
     if ambient > 0:
         off = np.float32(ambient * float(np.max(drange, initial=0.0)))
         for img in images:
-            img += off if full else off * mask
-    top = float(np.max(images, where=mask[None], initial=0.0))
+            img += off if full else off * object_mask
+    top = float(np.max(images, where=object_mask[None], initial=0.0))
     scale = top if saturation is None else saturation * top
     if top <= 0:
         return images
@@ -198,5 +198,5 @@ def camera(images, object_mask, drange, *, ambient, saturation, gamma):
             np.power(img, np.float32(1 / gamma), out=img)
             img *= np.float32(scale)
         if not full:
-            img *= mask
+            img *= object_mask
     return images

@@ -340,8 +340,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     except (TypeError, ValueError):
         raise PsbenchError(f"seed must be an integer, got {seed!r}") from None
 
-    height, mask, normals = _surface(surface)
-    H, W = mask.shape
+    height, object_mask, normals = _surface(surface)
+    H, W = object_mask.shape
     rho_d = _albedo(rho_d, "rho_d", (H, W))
     rho_s = _albedo(rho_s, "rho_s", (H, W))
     m = _lobe(m, "m", (H, W))
@@ -394,7 +394,7 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         raise PsbenchError("falloff=True needs near lights: pass light_positions (k, 3)")
     if perspective is not None:
         f = _positive(perspective, "perspective")
-        top = float(np.max(height, where=mask, initial=0.0))
+        top = float(np.max(height, where=object_mask, initial=0.0))
         if f <= top:
             raise PsbenchError(f"perspective={f:g}: the camera (0, 0, f) must be above the surface "
                                f"(highest point {top:g})")
@@ -412,16 +412,16 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
                        rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m,
                        highlight=highlight, highlight_angle=highlight_angle,
                        highlight_fraction=highlight_fraction, shadow_bias=shadow_bias)
-        scene = add_bounces(scene, height, mask, normals, bounces=int(bounces),
+        scene = add_bounces(scene, height, object_mask, normals, bounces=int(bounces),
                             samples=int(bounce_samples), noise=noise, seed=seed, model=model,
                             rho_d=rho_d, rho_s=rho_s, m=m, phong_m=phong_m)
-        _departures.camera(scene.images, mask, scene.dynamic_range, **camera)
+        _departures.camera(scene.images, object_mask, scene.dynamic_range, **camera)
         if quantize is not None:
-            _quantize(scene.images, mask, quantize)
+            _quantize(scene.images, object_mask, quantize)
             scene.quantize = quantize
         return scene
 
-    shader = Shader(height, mask, normals, lay, model, rho_d, rho_s, m, phong_m,
+    shader = Shader(height, object_mask, normals, lay, model, rho_d, rho_s, m, phong_m,
                     pos, bool(falloff), perspective,
                     clamp=not (isinstance(shadows, str) and shadows == "none"),
                     half_cos=rule == "cone" and model != "lambert", roughness=roughness, f0=f0)
@@ -438,8 +438,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
     drange = np.zeros(k, dtype=np.float32)
     sigma = np.zeros(k, dtype=np.float32)
     rng = np.random.default_rng(seed)
-    full = bool(mask.all())
-    outside = None if full else ~mask
+    full = bool(object_mask.all())
+    outside = None if full else ~object_mask
     dark = np.empty((H, W), dtype=bool)
     keep = np.empty((H, W), dtype=bool)
     z = None  # noise buffer
@@ -448,12 +448,12 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         np.logical_not(lit, out=dark)  # dark: self or cast shadow, or off the object
         np.copyto(self_sh[i], dark)
         if outside is not None:
-            self_sh[i] &= mask
+            self_sh[i] &= object_mask
             dark |= outside
         if occluded is not None:
             np.logical_and(occluded[i], lit, out=cast_sh[i])
             if outside is not None:
-                cast_sh[i] &= mask
+                cast_sh[i] &= object_mask
             dark |= cast_sh[i]
         img = images[i]
         if spec is None:
@@ -465,8 +465,8 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
         if full:
             hi, lo = float(img.max()), float(img.min())
         else:
-            hi = float(np.max(img, where=mask, initial=-np.inf))
-            lo = float(np.min(img, where=mask, initial=np.inf))
+            hi = float(np.max(img, where=object_mask, initial=-np.inf))
+            lo = float(np.min(img, where=object_mask, initial=np.inf))
         drange[i] = hi - lo if np.isfinite(hi) else 0.0
         if spec is not None:
             highlight_plane(highlight[i], spec, shader.cos_h, keep, cos_t=cos_t,
@@ -478,17 +478,19 @@ def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
             rng.standard_normal(dtype=np.float32, out=z)
             z *= sigma[i]
             if outside is not None:
-                z *= mask
+                z *= object_mask
             img += z
-    _departures.camera(images, mask, drange, **camera)
+    _departures.camera(images, object_mask, drange, **camera)
     if quantize is not None:
-        _quantize(images, mask, quantize)
+        _quantize(images, object_mask, quantize)
     return Scene(images, highlight, self_sh, cast_sh, surface, lay, model, float(noise), seed,
                  sigma, drange, shadows, quantize, h_fraction, rule, h_angle, shader)
 
 
-def _quantize(images, mask, bits):
-    top = float(np.max(images, where=mask[None], initial=0.0))
+def _quantize(images, object_mask, bits):
+    """Round the (k, H, W) ``images`` in place to ``bits``-bit levels of their maximum
+    over the (H, W) bool ``object_mask``."""
+    top = float(np.max(images, where=object_mask[None], initial=0.0))
     if top <= 0:
         images[...] = 0.0
         return
@@ -541,6 +543,8 @@ def _object_mask(surface, *, stacklevel=3):
 
 
 def _surface(surface):
+    """Checked (height (H, W) float32, object_mask (H, W) bool, normals (H, W, 3) float32)
+    of a surface-like object; non-finite values off the object replaced."""
     missing = [f for f in ("height", "normals") if not hasattr(surface, f)]
     if not (hasattr(surface, "object_mask") or hasattr(surface, "mask")):
         missing.insert(1, "object_mask")
@@ -552,25 +556,26 @@ def _surface(surface):
     if height.ndim != 2 or height.dtype == bool or not np.issubdtype(height.dtype, np.number):
         raise PsbenchError(f"surface.height must be a numeric (H, W) array, got shape {height.shape}")
     H, W = height.shape
-    mask = np.asarray(_object_mask(surface, stacklevel=5))
-    if mask.shape != (H, W):
-        raise PsbenchError(f"surface.object_mask must have shape {(H, W)}, got {mask.shape}")
-    mask = mask.astype(bool, copy=False)
+    object_mask = np.asarray(_object_mask(surface, stacklevel=5))
+    if object_mask.shape != (H, W):
+        raise PsbenchError(f"surface.object_mask must have shape {(H, W)}, "
+                           f"got {object_mask.shape}")
+    object_mask = object_mask.astype(bool, copy=False)
     normals = np.asarray(surface.normals, dtype=np.float32)
     if normals.shape != (H, W, 3):
         raise PsbenchError(f"surface.normals must have shape {(H, W, 3)}, got {normals.shape}")
     height = height.astype(np.float32, copy=False)
     fin = np.isfinite(height)
-    if not fin[mask].all():
+    if not fin[object_mask].all():
         raise PsbenchError("surface.height holds NaN/inf inside surface.object_mask")
     if not fin.all():
         height = np.where(fin, height, np.float32(height[fin].min() if fin.any() else 0.0))
     nfin = np.isfinite(normals).all(axis=2)
-    if not nfin[mask].all():
+    if not nfin[object_mask].all():
         raise PsbenchError("surface.normals holds NaN/inf inside surface.object_mask")
     if not nfin.all():
         normals = np.where(nfin[..., None], normals, np.float32([0, 0, 1]))
-    return height, mask, normals
+    return height, object_mask, normals
 
 
 def _lights(lights):

@@ -33,6 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from . import tables as T
+from .._shared.deprecation import renamed_names
 from ..io.html import write_atomic
 
 DEFAULT_TOLERANCES = {
@@ -53,8 +54,9 @@ def gated() -> tuple[str, ...]:
     return tuple(n for n in T.names() if getattr(T.experiment_module(n), "GATED", False))
 
 
-def metric_kind(experiment: str, part: str, column: str) -> str:
-    """Which tolerance class a cell belongs to (the module's ``cell_kind``)."""
+def cell_kind(experiment: str, part: str, column: str) -> str:
+    """Which kind (tolerance class) a cell belongs to: the module's ``cell_kind``
+    (formerly ``metric_kind``)."""
     fn = getattr(T.experiment_module(experiment), "cell_kind", None)
     return str(fn(part, column)) if fn is not None else "ne"
 
@@ -107,7 +109,7 @@ def compare(experiment, base: pd.DataFrame, cur: pd.DataFrame, tol) -> pd.DataFr
     m = pd.merge(b, c, on=key, how="outer")
     recs = []
     for r in m.itertuples(index=False):
-        kind = metric_kind(experiment, r.part, r.column)
+        kind = cell_kind(experiment, r.part, r.column)
         t = _tol_for(tol, experiment, kind)
         bv, cv = _num(r.baseline), _num(r.current)
         name = "/".join(x for x in (r.part, r.row, r.column) if x)
@@ -253,6 +255,9 @@ def main(argv=None) -> int:
     if a.command == "check":
         return check(results, a.baselines, exps, verbose=a.verbose)
     return update(results, a.baselines, exps)
+
+
+__getattr__ = renamed_names(globals(), {"metric_kind": "cell_kind"})
 
 
 if __name__ == "__main__":

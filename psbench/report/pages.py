@@ -96,7 +96,7 @@ def _tally(vs) -> dict:
 
 def _comparison_blocks(name, cmp) -> list:
     mod = T.experiment_module(name)
-    timed = any(P.kind(name, p, c) == "time" for p, c in zip(cmp["part"], cmp["column"]))
+    timed = any(P.cell_kind(name, p, c) == "time" for p, c in zip(cmp["part"], cmp["column"]))
     blocks = [("h2", "psbench vs thesis"),
               ("p", "psbench: this report's mean over the runs named above; thesis: the value "
                     "the thesis prints; Δ = psbench − thesis, in the column's unit; — : no "

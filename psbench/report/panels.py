@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared.deprecation import renamed_args
 from ..io.html import save_figure, write_page
 
 SURFACES = ("semisphere", "sombrero", "penny", "mozart")
@@ -32,25 +33,59 @@ MASKS = ("None", "xNL", "xNL-Sh", "Th", "Th-Hi-Re-Sh", "RA")
 LABELS = {"xNL": "NL (xNL)", "xNL-Sh": "NL-Sh (xNL-Sh)"}
 
 
-def encode_normals(normals, mask=None):
-    """RGB image [(nx+1)/2, (ny+1)/2, nz] (thesis Fig. 5.17), clipped to 0..1."""
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def encode_normals(normals, *, object_mask=None):
+    """RGB image [(nx+1)/2, (ny+1)/2, nz] (thesis Fig. 5.17), clipped to 0..1.
+
+    Parameters
+    ----------
+    normals : (H, W, 3) array_like
+        Normals, x right, y up, z towards the camera.
+    object_mask : (H, W) bool, optional
+        Object region; pixels outside it are black. Formerly ``mask=`` (or the second
+        positional argument), which still works with a DeprecationWarning.
+
+    Returns
+    -------
+    rgb : (H, W, 3) float64
+        In 0..1.
+    """
     n = np.asarray(normals, dtype=float)
     rgb = np.stack([(n[..., 0] + 1) / 2, (n[..., 1] + 1) / 2, n[..., 2]], axis=-1)
     rgb = np.clip(rgb, 0, 1)
-    if mask is not None:
-        rgb[~np.asarray(mask, bool)] = 0
+    if object_mask is not None:
+        rgb[~np.asarray(object_mask, bool)] = 0
     return rgb
 
 
-def overlay(image, flagged, truth, mask=None):
-    """Grey image with TP green, FP blue, FN red (thesis Fig. 5.15)."""
+@renamed_args(positional=("object_mask",), renamed={"mask": "object_mask"})
+def overlay(image, flagged, truth, *, object_mask=None):
+    """Grey image with TP green, FP blue, FN red (thesis Fig. 5.15).
+
+    Parameters
+    ----------
+    image : (H, W) array_like
+        The image, shown in grey (1st-99th percentile stretch).
+    flagged : (H, W) bool
+        Pixels the mask excluded.
+    truth : (H, W) bool
+        Pixels truly in highlight or shadow.
+    object_mask : (H, W) bool, optional
+        Object region; outside it nothing is coloured. Formerly ``mask=`` (or the
+        fourth positional argument), which still works with a DeprecationWarning.
+
+    Returns
+    -------
+    rgb : (H, W, 3) float64
+        In 0..1.
+    """
     img = np.asarray(image, dtype=float)
     lo, hi = np.nanpercentile(img, 1), np.nanpercentile(img, 99)
     g = np.clip((img - lo) / max(hi - lo, 1e-9), 0, 1)
     rgb = np.repeat(g[..., None], 3, axis=-1) * 0.8
     f, t = np.asarray(flagged, bool), np.asarray(truth, bool)
-    if mask is not None:
-        m = np.asarray(mask, bool)
+    if object_mask is not None:
+        m = np.asarray(object_mask, bool)
         f, t = f & m, t & m
     rgb[f & t] = (0, 0.85, 0)
     rgb[f & ~t] = (0.1, 0.3, 1.0)
@@ -67,11 +102,14 @@ NE_MAX = 20.0        # degrees: fixed colour range of every NE map
 NE_CMAP = "magma"    # perceptual, dark = small error
 
 
-def _ne_image(ax, ne, mask):
-    """An NE map on ``ax`` with the fixed colour range; outside the object white."""
+def _ne_image(ax, ne, object_mask):
+    """An NE map on ``ax`` with the fixed colour range; outside the object white.
+
+    ``ne`` and ``object_mask`` are (H, W): degrees and the object region.
+    """
     import numpy.ma as ma
 
-    img = ax.imshow(ma.masked_where(~np.asarray(mask, bool), ne), cmap=_cmap(), vmin=0.0,
+    img = ax.imshow(ma.masked_where(~np.asarray(object_mask, bool), ne), cmap=_cmap(), vmin=0.0,
                     vmax=NE_MAX, interpolation="nearest")
     return img
 
@@ -94,17 +132,18 @@ def _off(axes):
         ax.set_yticks([])
 
 
-def _height_render(fig, heights, mask, size, log):
-    """Shaded 3D surfaces of ``heights`` [(label, (H,W))] side by side."""
+def _height_render(fig, heights, object_mask, size, log):
+    """Shaded 3D surfaces of ``heights`` [(label, (H, W))] side by side, over the
+    (H, W) bool ``object_mask``."""
     import matplotlib.pyplot as plt
     from matplotlib.colors import LightSource
 
     ls = LightSource(azdeg=315, altdeg=55)
     step = max(1, size // 96)
-    m = np.asarray(mask, bool)[::step, ::step]
+    m = np.asarray(object_mask, bool)[::step, ::step]
     for k, (label, h) in enumerate(heights):
         ax = fig.add_subplot(1, len(heights), k + 1, projection="3d")
-        z = np.where(mask, np.asarray(h, float), np.nan)
+        z = np.where(object_mask, np.asarray(h, float), np.nan)
         z = z - np.nanmin(z)
         z = z[::step, ::step]
         zf = np.where(m, z, 0.0)
@@ -157,7 +196,7 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
         axm[0][j].imshow(sc.images[li], cmap="gray")
         axm[0][j].set_title(name, fontsize=14)
         axn[0][j].set_title(name, fontsize=14)
-        axr[0][j].imshow(encode_normals(surf.normals, surf.object_mask))
+        axr[0][j].imshow(encode_normals(surf.normals, object_mask=surf.object_mask))
         axr[0][j].set_title(name, fontsize=14)
         for i, mask in enumerate(MASKS):
             try:
@@ -169,9 +208,10 @@ def build_panels(out, *, size=128, noise=0.1, seed=0, log=print):
             ne = np.where(surf.object_mask, ne, np.nan)
             table.setdefault(LABELS.get(mask, mask), {})[name] = float(np.nanmean(ne))
             flagged = ~np.asarray(res.valid, bool)[li]
-            axm[i + 1][j].imshow(overlay(sc.images[li], flagged, truth[li], surf.object_mask))
+            axm[i + 1][j].imshow(overlay(sc.images[li], flagged, truth[li],
+                                              object_mask=surf.object_mask))
             img = _ne_image(axn[i][j], ne, surf.object_mask)
-            axr[i + 1][j].imshow(encode_normals(res.normals, surf.object_mask))
+            axr[i + 1][j].imshow(encode_normals(res.normals, object_mask=surf.object_mask))
             if j == 0:
                 for ax in (axm[i + 1][0], axn[i][0], axr[i + 1][0]):
                     ax.set_ylabel(LABELS.get(mask, mask), fontsize=13)

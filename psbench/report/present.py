@@ -3,7 +3,7 @@
 A page's table puts psbench, the thesis and their difference in separate columns, each
 with its unit and one precision per column (:func:`part_table`). Units and precision
 come from the cell's tolerance class (the module's ``cell_kind(part, column)``, default
-``ne``; see :data:`KINDS`); an experiment module may refine them with optional
+``ne``; see :data:`CELL_KINDS`); an experiment module may refine them with optional
 presentation hooks:
 
 ``cell_unit(part, column) -> str``
@@ -27,12 +27,15 @@ import math
 
 import pandas as pd
 
-__all__ = ["KINDS", "COLUMN_NAMES", "kind", "unit", "decimals", "column_label", "table_axes",
-           "part_title", "fmt", "part_table", "TIME_REFERENCE"]
+from .._shared.deprecation import renamed_names
 
-#: tolerance class -> (unit, decimals); "exact": as few decimals as show the value (sweep
-#: values such as thresholds, printed like the thesis prints them)
-KINDS = {"ne": ("deg", 2), "qf": ("", 2), "cond": ("", 4), "percent": ("%", 1),
+__all__ = ["CELL_KINDS", "COLUMN_NAMES", "cell_kind", "unit", "decimals", "column_label",
+           "table_axes", "part_title", "fmt", "part_table", "TIME_REFERENCE"]
+
+#: cell kind (tolerance class, an experiment's ``cell_kind``) -> (unit, decimals);
+#: "exact": as few decimals as show the value (sweep values such as thresholds, printed
+#: like the thesis prints them). Formerly ``KINDS``.
+CELL_KINDS = {"ne": ("deg", 2), "qf": ("", 2), "cond": ("", 4), "percent": ("%", 1),
          "ratio": ("x", 2), "ie": ("% of range", 2), "time": ("s", 4), "threshold": ("", "exact")}
 COLUMN_NAMES = {"ne": "NE", "time": "time", "qf_hi": "QF highlight", "qf_sh": "QF shadow",
                 "qf_total": "QF total", "mean": "mean", "overall": "overall"}
@@ -47,14 +50,15 @@ def _module(name):
     return experiment_module(name)
 
 
-def kind(name, part, column) -> str:
-    """Tolerance class of a cell (the module's ``cell_kind``, default ``ne``)."""
+def cell_kind(name, part, column) -> str:
+    """Kind (tolerance class) of a cell: the experiment module's ``cell_kind(part,
+    column)``, default ``ne`` (formerly ``kind``)."""
     fn = getattr(_module(name), "cell_kind", None)
     try:
         k = str(fn(part, column)) if fn is not None else "ne"
     except Exception:  # noqa: BLE001 - a presentation hook must not break the page
         k = "ne"
-    return k if k in KINDS else "ne"
+    return k if k in CELL_KINDS else "ne"
 
 
 def unit(name, part, column) -> str:
@@ -65,12 +69,12 @@ def unit(name, part, column) -> str:
             return str(fn(part, column))
         except Exception:  # noqa: BLE001
             pass
-    return KINDS[kind(name, part, column)][0]
+    return CELL_KINDS[cell_kind(name, part, column)][0]
 
 
 def decimals(name, part, column):
     """Decimals of a cell's numbers (one precision per column)."""
-    return KINDS[kind(name, part, column)][1]
+    return CELL_KINDS[cell_kind(name, part, column)][1]
 
 
 def column_label(name, part, column) -> str:
@@ -142,7 +146,7 @@ def _layout(name, part, rows, cols, cell):
     has_ps = {c: any(_ok(cell.get((r, c), (None, None))[0]) for r in rows) for c in cols}
     out = []
     for c in cols:
-        if kind(name, part, c) == "time":
+        if cell_kind(name, part, c) == "time":
             ref = TIME_REFERENCE in rows
             subs = (["psbench", "psbench_ratio", "thesis_ratio"] if ref and has_th[c]
                     else ["psbench", "psbench_ratio"] if ref else ["psbench"])
@@ -192,9 +196,9 @@ def part_table(name, cmp: pd.DataFrame, part: str, max_cols: int = 18):
     cell = {(r, c): (ps, th) for r, c, ps, th in
             zip(p["row"], p["column"], p["psbench"], p["thesis"])}
     layout = _layout(name, part, rows, cols, cell)
-    units = {unit(name, part, c) for c, _ in layout if kind(name, part, c) != "time"}
+    units = {unit(name, part, c) for c, _ in layout if cell_kind(name, part, c) != "time"}
     shared = units.pop() if len(units) == 1 and all(
-        kind(name, part, c) != "time" for c, _ in layout) else None
+        cell_kind(name, part, c) != "time" for c, _ in layout) else None
     cap = [f"rows: {rtitle}" if rtitle else "", f"columns: {ctitle}" if ctitle else "",
            f"values in {shared}" if shared else ""]
     caption = "; ".join(x for x in cap if x) or None
@@ -203,7 +207,7 @@ def part_table(name, cmp: pd.DataFrame, part: str, max_cols: int = 18):
     multi = any(subs != ["psbench"] for _, subs in layout)
     labels = [("", rtitle or "row")]
     for c, subs in layout:
-        k = kind(name, part, c)
+        k = cell_kind(name, part, c)
         head = column_label(name, part, c) if shared is not None or k == "time" else \
             _head(column_label(name, part, c), unit(name, part, c))
         for s in subs:
@@ -232,3 +236,6 @@ def _long_table(name, p, part, rtitle) -> pd.DataFrame:
                      fmt(ps - th, nd, sign=True) if _ok(ps) and _ok(th) else MISSING])
     return pd.DataFrame(recs, columns=[rtitle or "row", "column", "unit", "psbench", "thesis",
                                        "Δ"])
+
+
+__getattr__ = renamed_names(globals(), {"KINDS": "CELL_KINDS", "kind": "cell_kind"})

@@ -56,10 +56,22 @@ def _angle(angle, hi):
     return a
 
 
-def _finish(name, height, mask, normals):
+def _finish(name, height, object_mask, normals):
+    """The :class:`Surface` with flat normals off the object.
+
+    Parameters
+    ----------
+    name : str
+    height : (H, W) array_like
+        Heights in pixel units.
+    object_mask : (H, W) bool
+        Object region.
+    normals : (H, W, 3) array_like
+        Unit normals; set to (0, 0, 1) outside ``object_mask``.
+    """
     normals = np.asarray(normals, dtype=np.float32).copy()
-    normals[~mask] = (0.0, 0.0, 1.0)
-    return Surface(name, np.asarray(height, dtype=np.float32), mask, normals)
+    normals[~object_mask] = (0.0, 0.0, 1.0)
+    return Surface(name, np.asarray(height, dtype=np.float32), object_mask, normals)
 
 
 def cup_geometry(size, angle=60.0):
@@ -89,15 +101,15 @@ def cup(size=512, *, angle=60.0):
     R, a, zc = cup_geometry(size, angle)
     x, y = pixel_grid((size, size))
     r2 = np.broadcast_to(x * x + y * y, (size, size))
-    mask = r2 < a * a
+    object_mask = r2 < a * a
     root = np.sqrt(np.maximum(R * R - r2, 0.0))
-    height = np.where(mask, zc - root, 0.0)
+    height = np.where(object_mask, zc - root, 0.0)
     n = np.empty((size, size, 3))
     n[..., 0] = -np.broadcast_to(x, (size, size)) / R
     n[..., 1] = -np.broadcast_to(y, (size, size)) / R
     n[..., 2] = root / R
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    return _finish("cup", height, mask, n)
+    return _finish("cup", height, object_mask, n)
 
 
 def vgroove(size=512, *, angle=45.0):
@@ -121,12 +133,12 @@ def vgroove(size=512, *, angle=45.0):
     t = math.tan(math.radians(angle))
     x, _ = pixel_grid((size, size))
     x = np.broadcast_to(x, (size, size))
-    mask = np.abs(x) < hw
-    height = np.where(mask, -(hw - np.abs(x)) * t, 0.0)
+    object_mask = np.abs(x) < hw
+    height = np.where(object_mask, -(hw - np.abs(x)) * t, 0.0)
     n = np.empty((size, size, 3))
     n[..., 0] = -np.sign(x) * t
     n[..., 1] = 0.0
     n[..., 2] = 1.0
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    return _finish("vgroove", height, mask, n)
+    return _finish("vgroove", height, object_mask, n)
 

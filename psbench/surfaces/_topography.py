@@ -237,8 +237,8 @@ def surface_from_topography(topography, *, object_mask=None, scale=1.0, name=Non
     scale = float(scale)
     if not math.isfinite(scale) or scale <= 0:
         raise PsbenchError(f"scale must be a positive finite number, got {scale}")
-    mask = valid if object_mask is None else valid & as_mask(object_mask, valid.shape,
-                                                             "object_mask")
+    object_mask = valid if object_mask is None else valid & as_mask(object_mask, valid.shape,
+                                                                    "object_mask")
     z = fill_invalid(topography.height, valid) / float(topography.pixel_size) * scale
     label = name if name is not None else (topography.name or "topography")
-    return finish(str(label), z, np.asarray(mask, dtype=bool), normals_from_height(z))
+    return finish(str(label), z, np.asarray(object_mask, dtype=bool), normals_from_height(z))

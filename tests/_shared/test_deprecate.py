@@ -12,7 +12,8 @@ import psbench as ps
 from psbench import calibrate as cal
 from psbench import io, metrics as M
 from psbench._shared.deprecation import renamed_args
-from psbench.integrate import gradients
+from psbench.integrate import bilateral_integrate, gradients
+from psbench.report import panels
 from psbench.render.shadowmap import point_shadow_map
 
 
@@ -131,6 +132,9 @@ CASES = {
     "solve integrate_method=": (
         lambda: ps.solve(SCENE.images, LAY, mask="Th-Sh", integrate_method="fc", want_height=True).height,
         lambda: ps.solve(SCENE.images, LAY, mask="Th-Sh", integrator="fc", want_height=True).height),
+    "bilateral_integrate positional": (
+        lambda: bilateral_integrate(N, OBJ, max_iter=3),
+        lambda: bilateral_integrate(N, object_mask=OBJ, max_iter=3)),
     "gradients": (lambda: gradients(N, OBJ), lambda: gradients(N, object_mask=OBJ)),
     "shadow_map mask=": (lambda: ps.shadow_map(H, LAY, mask=OBJ),
                          lambda: ps.shadow_map(H, LAY, object_mask=OBJ)),
@@ -159,6 +163,16 @@ CASES = {
                                 lambda: ps.layout("45x4", power=2.0)),
     "encode_normals": (lambda: io.encode_normals(N, OBJ),
                        lambda: io.encode_normals(N, object_mask=OBJ)),
+    "panels.encode_normals positional": (lambda: panels.encode_normals(N, OBJ),
+                                         lambda: panels.encode_normals(N, object_mask=OBJ)),
+    "panels.encode_normals mask=": (lambda: panels.encode_normals(N, mask=OBJ),
+                                    lambda: panels.encode_normals(N, object_mask=OBJ)),
+    "panels.overlay positional": (
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], OBJ),
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], object_mask=OBJ)),
+    "panels.overlay mask=": (
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], mask=OBJ),
+        lambda: panels.overlay(SCENE.images[0], FLAG[0], SCENE.shadow[0], object_mask=OBJ)),
     "hot_pixels": (lambda: cal.hot_pixels(DARK, 0.5), lambda: cal.hot_pixels(DARK, threshold=0.5)),
     "remove_hot_pixels": (lambda: cal.remove_hot_pixels(WHITE, DARK > 0.5, 5),
                           lambda: cal.remove_hot_pixels(WHITE, DARK > 0.5, ksize=5)),
@@ -234,3 +248,28 @@ def test_dataset_mask_alias(tmp_path):
     assert old.object_mask is OBJ
     with pytest.raises(TypeError, match="both"):
         io.Dataset(ds.images, ds.lights, OBJ, None, ds.names, mask=OBJ)
+
+
+# ----------------------------------------------------------------------------- renamed names
+@pytest.mark.parametrize("module, old, new", [
+    ("psbench.analysis", "KINDS", "IMAGE_KINDS"),
+    ("psbench.analysis.builtin", "KINDS", "IMAGE_KINDS"),
+    ("psbench.analysis._common", "KINDS", "IMAGE_KINDS"),
+    ("psbench.report.present", "KINDS", "CELL_KINDS"),
+    ("psbench.report.present", "kind", "cell_kind"),
+    ("psbench.report.gate", "metric_kind", "cell_kind"),
+    ("psbench.integrate", "METHODS", "INTEGRATORS"),
+    ("psbench.forensic.pipeline", "METHODS", "RECIPES"),
+    ("psbench.harness.run", "KINDS", "RUN_KINDS"),
+])
+def test_renamed_module_names(module, old, new):
+    import importlib
+    mod = importlib.import_module(module)
+    assert old not in getattr(mod, "__all__", ())      # star imports do not warn
+    with pytest.warns(DeprecationWarning, match=f"{module}.{old} is deprecated.*{new}"):
+        value = getattr(mod, old)
+    assert value is getattr(mod, new)
+    with pytest.warns(DeprecationWarning, match=new):
+        exec(f"from {module} import {old}", {})
+    with pytest.raises(AttributeError, match="no attribute"):
+        getattr(mod, old + "_NOPE")

@@ -30,7 +30,7 @@ def test_plane_is_exact_and_datum():
 
 def test_smooth_surface_as_good_as_poisson():
     s = ps.make_surface("semisphere_disc", size=96)
-    h = bilateral_integrate(s.normals, s.object_mask)
+    h = bilateral_integrate(s.normals, object_mask=s.object_mask)
     hp = ps.integrate(s.normals, object_mask=s.object_mask)
     inner = s.object_mask & (s.zenith < 60)
 
@@ -68,10 +68,10 @@ def test_components_and_empty_mask():
     n = _normals(np.full_like(x, 0.1), np.zeros_like(x))
     m = np.zeros((30, 30), bool)
     m[2:10, 2:10] = m[15:28, 15:28] = True
-    h = bilateral_integrate(n, m)
+    h = bilateral_integrate(n, object_mask=m)
     assert h[2:10, 2:10].min() == pytest.approx(0, abs=1e-6)
     assert h[15:28, 15:28].min() == pytest.approx(0, abs=1e-6)
-    assert (bilateral_integrate(n, np.zeros((30, 30), bool)) == 0).all()
+    assert (bilateral_integrate(n, object_mask=np.zeros((30, 30), bool)) == 0).all()
 
 
 @pytest.mark.parametrize("kwargs, word", [

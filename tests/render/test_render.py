@@ -390,18 +390,18 @@ def test_models_constant():
 def test_unclamped_di_is_plain_lambert():
     # "Di" images of Figs. 4.3/4.4 have no highlight and no shadow: I = rho_d s.n exactly,
     # negative where s.n < 0, so least squares recovers every normal (clamped: it cannot)
-    from psbench.analysis import KINDS
+    from psbench.analysis import IMAGE_KINDS
     from psbench.surfaces import make_surface
 
     surf = make_surface("sombrero3", size=64)
     lay = layout("70x8")
-    di = render(surf, lay, noise=0.0, **KINDS["Di"])
+    di = render(surf, lay, noise=0.0, **IMAGE_KINDS["Di"])
     expect = np.einsum("hwc,kc->khw", surf.normals, lay.directions).astype(np.float32)
     np.testing.assert_allclose(di.images, expect, atol=1e-5)
     assert (di.images < 0).any() and not di.shadow.any() and not di.highlight.any()
     n, _ = split(wls(di.images, lay.S))
     assert angle_deg(n, surf.normals).max() < 0.05
-    clamped = render(surf, lay, noise=0.0, **KINDS["Di-clamped"])
+    clamped = render(surf, lay, noise=0.0, **IMAGE_KINDS["Di-clamped"])
     assert (clamped.images >= 0).all() and clamped.self_shadow.any()
     n, _ = split(wls(clamped.images, lay.S))
     assert angle_deg(n, surf.normals).max() > 1.0

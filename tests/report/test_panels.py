@@ -12,7 +12,7 @@ def test_encode_normals_thesis_convention():
     assert np.allclose(rgb[0, 0], [0.5, 0.5, 1.0])
     assert np.allclose(rgb[0, 1], [1.0, 0.5, 0.0])
     assert np.allclose(rgb[0, 2], [0.5, 0.0, 0.0])
-    masked = panels.encode_normals(n, mask=np.array([[True, False, True]]))
+    masked = panels.encode_normals(n, object_mask=np.array([[True, False, True]]))
     assert np.allclose(masked[0, 1], 0)
 
 

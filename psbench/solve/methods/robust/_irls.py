@@ -25,7 +25,7 @@ import numpy as np
 
 from ...base import Options, check_choice, check_int, check_number
 from ._common import Pixels, masked_median, wls
-from ._kernel import KINDS, irls_m
+from ._kernel import WEIGHT_FUNCTIONS, irls_m
 
 __all__ = ["irls", "IterOptions", "MOptions", "m_estimate", "START"]
 
@@ -273,7 +273,7 @@ def m_estimate(problem, options: MOptions, *, name, c_default):
         # the scale of the start's residuals, held fixed (MM-estimation) or ("update")
         # re-estimated from the current residuals at every iteration
         irls_m(px.Ik, px.kernel_valid(), px.all_valid, px.outer_t, px.S32_t, b0, c,
-               KINDS[name], options.scale == "update", np.float32(1e-5 * px.scale),
+               WEIGHT_FUNCTIONS[name], options.scale == "update", np.float32(1e-5 * px.scale),
                np.float32(1e-6 * px.scale), np.float32(options.tol), int(options.n_iter),
                b, w, inlier, its, conv, sigma)
     # w(0) = 1 for every estimator: the weights are already in [0, 1]

@@ -19,11 +19,11 @@ from numba import njit, prange
 
 from ..._sym3 import solve_sym3
 
-__all__ = ["trim_rows", "irls_m", "HUBER", "CAUCHY", "TUKEY", "KINDS"]
+__all__ = ["trim_rows", "irls_m", "HUBER", "CAUCHY", "TUKEY", "WEIGHT_FUNCTIONS"]
 
-#: weight functions of :func:`irls_m`
+#: weight functions of :func:`irls_m` (its ``kind``), and estimator name -> code
 HUBER, CAUCHY, TUKEY = 0, 1, 2
-KINDS = {"huber": HUBER, "cauchy": CAUCHY, "tukey": TUKEY}
+WEIGHT_FUNCTIONS = {"huber": HUBER, "cauchy": CAUCHY, "tukey": TUKEY}
 #: pixels per block (scratch rows are allocated once per block)
 CHUNK = 512
 #: rows up to this length rank every observation by counting (k^2 / 2 comparisons),

@@ -28,7 +28,7 @@ def test_huber_on_sparse_corruptions():
 def test_weight_functions(kind):
     """The first IRLS weights of the compiled loop are w(u) of u = r / (c sigma),
     sigma = 1.4826 median |r| of the start."""
-    from psbench.solve.methods.robust._kernel import KINDS, irls_m
+    from psbench.solve.methods.robust._kernel import WEIGHT_FUNCTIONS, irls_m
 
     rng = np.random.default_rng(0)
     k = 16
@@ -43,7 +43,7 @@ def test_weight_functions(kind):
     out = (np.empty((1, 3), np.float32), np.empty((k, 1), np.float32), np.empty((k, 1), bool),
            np.empty(1, np.int32), np.empty(1, bool), np.empty(1, np.float32))
     c = 1.5
-    irls_m(I, np.ones((1, 1), bool), True, O, St, b0, np.float32(c), KINDS[kind], False,
+    irls_m(I, np.ones((1, 1), bool), True, O, St, b0, np.float32(c), WEIGHT_FUNCTIONS[kind], False,
            np.float32(1e-6), np.float32(1e-6), np.float32(1e-3), 1, *out)
     w, sigma = out[1][:, 0], out[5][0]
     r_now = I[:, 0] - (S @ b0[0]).astype(np.float32)

@@ -5,7 +5,7 @@ import numba
 import numpy as np
 import pytest
 
-from psbench.solve.methods.robust._kernel import KINDS, SHORT, irls_m, trim_rows
+from psbench.solve.methods.robust._kernel import WEIGHT_FUNCTIONS, SHORT, irls_m, trim_rows
 
 
 def _lights(k, rng):
@@ -102,7 +102,7 @@ def _ref_irls(I, V, S, b0, c, kind, floor, tol, n_iter):
     return b, it, sigma
 
 
-@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("kind", sorted(WEIGHT_FUNCTIONS))
 @pytest.mark.parametrize("k", [16, SHORT + 16])
 def test_irls_matches_reference(kind, k):
     n = 300
@@ -113,7 +113,7 @@ def test_irls_matches_reference(kind, k):
     out = (np.empty((n, 3), np.float32), np.empty(I.shape, np.float32),
            np.empty(I.shape, bool), np.empty(n, np.int32), np.empty(n, bool),
            np.empty(n, np.float32))
-    irls_m(I, V, False, O, St, b0, np.float32(2.0), KINDS[kind], False, np.float32(1e-5),
+    irls_m(I, V, False, O, St, b0, np.float32(2.0), WEIGHT_FUNCTIONS[kind], False, np.float32(1e-5),
            np.float32(1e-6), np.float32(1e-6), 200, *out)
     b, w, inl, its, conv, sigma = out
     assert conv.all()
@@ -140,7 +140,7 @@ def test_kernels_do_not_depend_on_thread_count():
             out = (np.empty((n, 3), np.float32), np.empty(I.shape, np.float32),
                    np.empty(I.shape, bool), np.empty(n, np.int32), np.empty(n, bool),
                    np.empty(n, np.float32))
-            irls_m(I, V, False, O, St, b, np.float32(2.385), KINDS["cauchy"], True,
+            irls_m(I, V, False, O, St, b, np.float32(2.385), WEIGHT_FUNCTIONS["cauchy"], True,
                    np.float32(1e-5), np.float32(1e-6), np.float32(1e-3), 50, *out)
             res.append((b, keep) + out)
     finally:
