@@ -44,6 +44,31 @@ def diligent():
     return root / "diligent"
 
 
+# slow / slurm tests deselected: counted where the tests are collected (this process, or
+# each pytest-xdist worker, which reports its count back: the controller collects nothing)
+_DESELECTED = {"here": 0, "workers": 0}
+
+
+def _slow_or_slurm(item):
+    return bool(item.get_closest_marker("slow") or item.get_closest_marker("slurm"))
+
+
+def pytest_deselected(items):
+    _DESELECTED["here"] += sum(map(_slow_or_slurm, items))
+
+
+def pytest_sessionfinish(session):
+    if hasattr(session.config, "workeroutput"):            # in an xdist worker
+        session.config.workeroutput["psbench_deselected"] = _DESELECTED["here"]
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    # every worker collects the whole selection: the same count each, not a sum
+    got = getattr(node, "workeroutput", {}).get("psbench_deselected", 0)
+    _DESELECTED["workers"] = max(_DESELECTED["workers"], got)
+
+
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     """One line per skipped group saying how to enable it (the skip reasons are per test)."""
     skipped = terminalreporter.stats.get("skipped", [])
@@ -53,8 +78,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         terminalreporter.write_line(
             f"psbench: {n_data} real-data test(s) skipped, DiLiGenT folders not found: "
             "set PSBENCH_DATA=<folder holding diligent/cat> to run them")
-    deselected = sum(1 for item in terminalreporter.stats.get("deselected", [])
-                     if item.get_closest_marker("slow") or item.get_closest_marker("slurm"))
+    deselected = max(_DESELECTED["here"], _DESELECTED["workers"])
     if deselected:
         terminalreporter.write_line(
             f"psbench: {deselected} slow/slurm test(s) deselected by default: "
