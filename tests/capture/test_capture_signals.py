@@ -18,7 +18,10 @@ def _start(tmp_path, out="cap"):
     signal sent now lands mid-capture however loaded the machine is (a capture left
     running could reach its last frame before the signal arrives), so a small capture
     will do."""
-    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=256", f"out={out}", "progress=false"],
+    # timeout=20: the simulated controller answers from a thread of the capture itself,
+    # which a loaded machine (parallel tests) can delay past the default 1 s reply timeout
+    proc = subprocess.Popen([str(_BIN), "rig=sim", "size=256", f"out={out}", "progress=false",
+                             "timeout=20"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     t0 = time.time()
