@@ -20,6 +20,7 @@ stack is a plane under distant lights, which least squares solves exactly.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import fields
 
 from .. import registry
@@ -191,6 +192,19 @@ def solve(images, lights, *, mask="None", method="ps", weighted=False, object_ma
         truth_normals = as_normals(truth_normals, "truth_normals", (H, W))
     thr = resolve_thresholds(k, lay, thresholds, masks=masks)
     timer.lap("validate")
-    return _engine.run(images, lay, tokens=tokens, thresholds=thr, options=options,
-                       object_mask=omask, seed=seed, method=spec, overrides=thresholds,
-                       want_height=want_height, truth=truth_normals, timer=timer, masks=masks)
+    # a solver's warnings (non-convergence, ...) are reported at the caller's line, not
+    # at a line inside psbench (the line Python prints beside the message)
+    pending = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return _engine.run(images, lay, tokens=tokens, thresholds=thr,
+                                   options=options, object_mask=omask, seed=seed, method=spec,
+                                   overrides=thresholds, want_height=want_height,
+                                   truth=truth_normals, timer=timer, masks=masks)
+            finally:
+                pending = list(caught)
+    finally:                            # the caller's filters apply to these
+        for w in pending:
+            warnings.warn(w.message, w.category, stacklevel=2)
