@@ -282,14 +282,12 @@ def _validation(px, keep, use_t, ve_t, e_l):
     observations, ``e_l``) elsewhere (:mod:`psbench.solve.validation`)."""
     from ...validation import summarise, validation_map
     I = px.Ik
-    if ve_t is None:
-        vals = validation_map(e_l, keep, I)
-    else:   # the trimmed fit's own only where it was kept (pixels are independent)
-        vals = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
-        vals = np.array(vals, dtype=np.float32)
-        j = np.flatnonzero(~use_t)
-        if j.size:
-            vals[j] = validation_map(e_l[:, j], keep[:, j], I[:, j])
+    # over every pixel: validation_map's intensity floor is a fraction of the mean over
+    # the pixels it is given, so a subset would change it
+    vals = validation_map(e_l, keep, I)
+    if ve_t is not None:
+        t = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
+        vals = np.where(use_t, t, vals)
     idx = np.arange(px.n) if px.full else px.idx
     return summarise(vals, idx, (px.H, px.W))
 
