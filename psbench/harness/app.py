@@ -163,7 +163,7 @@ def _task(cfg):
     st = S.coerce_settings({k: cfg.get(k) for k in ("sweep", "rerun", "retry_failed")})
     params = normalize(_base_params(cfg), base_dir=_cwd())
     sweep = st["sweep"]
-    rid = run_id(params)
+    rid = run_id(params, root=root)
     pics = _pictures_dir(cfg, root, sweep, rid, multi) if params["kind"] == "solve" else None
     done = {"run_id": rid, "root": str(root), "sweep": sweep,
             "out": None if pics is None else str(pics)}
@@ -300,7 +300,7 @@ def _experiment(cfg, root):
     _refuse_ignored(cfg, runs, name, scale)
     from .params import run_id
 
-    _WATCH.update(root=root, runs={name: [run_id(p) for p in runs]})
+    _WATCH.update(root=root, runs={name: [run_id(p, root=root) for p in runs]})
     print(f"experiment {name} (scale={cfg.scale}): {len(runs)} runs -> {root}/runs/{name}/",
           file=sys.stderr, flush=True)
     from omegaconf import OmegaConf

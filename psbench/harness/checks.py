@@ -140,4 +140,4 @@ def _sweep(cfg0, swept, parser, root, watch, overridden):
         runs.setdefault(st["sweep"], []).append(p)
     for sweep, ps in runs.items():
         preflight(ps, root=root, sweep=sweep)
-    watch["runs"] = {s: [run_id(p) for p in ps] for s, ps in runs.items()}
+    watch["runs"] = {s: [run_id(p, root=root) for p in ps] for s, ps in runs.items()}

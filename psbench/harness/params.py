@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -91,14 +92,26 @@ def normalize(params: dict, *, base_dir=None) -> dict:
     return out
 
 
-def run_id(params: dict) -> str:
+#: what a path inside the results store is hashed as (:func:`run_id`)
+STORE_TOKEN = "${results_dir}"
+
+
+def run_id(params: dict, *, root=None) -> str:
     """Stable 16-hex-digit hash of normalized parameters.
 
     Parameters declared ``hashed="unless_default"`` enter the hash only when they differ
     from their default, so runs stored before they existed keep their ids.
+
+    ``root`` is the results store the run belongs to: a path inside it (a surface file an
+    experiment makes in its store, a capture folder under it) is hashed relative to it, so
+    a store that is moved or copied keeps its run ids.
     """
     p = {k: v for k, v in params.items()
          if not (k in _UNLESS_DEFAULT and v == _UNLESS_DEFAULT[k])}
+    if root is not None:
+        inside = str(Path(root).expanduser().resolve()) + os.sep
+        p = {k: STORE_TOKEN + os.sep + v[len(inside):]
+             if isinstance(v, str) and v.startswith(inside) else v for k, v in p.items()}
     blob = json.dumps(p, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 

@@ -336,7 +336,7 @@ def _layout_fields(p, row):
 
 
 def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
-            keep=None) -> dict:
+            keep=None, root=None) -> dict:
     """Run once and return the complete results row (never raises for run errors).
 
     Parameters
@@ -351,9 +351,12 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
         Extra json-able config to record (default: the parameters).
     keep : dict, optional
         Filled with the solve's ``result`` and its ``scene`` (for pictures).
+    root : path-like, optional
+        The results store the row goes to (its run id hashes paths inside it relative to
+        it: :func:`~psbench.harness.params.run_id`).
     """
     p = params
-    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config, root=root)
     _reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     try:
@@ -375,21 +378,21 @@ def execute(params, *, sweep="adhoc", experiment=None, cache=None, config=None,
     return row
 
 
-def base_row(p, *, sweep="adhoc", experiment=None, config=None) -> dict:
+def base_row(p, *, sweep="adhoc", experiment=None, config=None, root=None) -> dict:
     """The parameter, identity and provenance columns of run ``p``'s row."""
     row = {k: S.column_value(k, v) for k, v in p.items() if k in S.SPEC and not S.SPEC[k].alias}
-    row.update(run_id=run_id(p), sweep=sweep, experiment=experiment, **provenance())
+    row.update(run_id=run_id(p, root=root), sweep=sweep, experiment=experiment, **provenance())
     row["config"] = json.dumps(config if config is not None else p, sort_keys=True, default=str)
     _layout_fields(p, row)
     return row
 
 
-def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None) -> dict:
+def failed_row(p, error, *, sweep="adhoc", experiment=None, config=None, root=None) -> dict:
     """The row of a run that ended without writing its own (its process was killed,
     e.g. by the out-of-memory killer)."""
     import datetime as _dt
 
-    row = base_row(p, sweep=sweep, experiment=experiment, config=config)
+    row = base_row(p, sweep=sweep, experiment=experiment, config=config, root=root)
     row.update(status="failed", error=str(error), traceback=str(error),
                utc=_dt.datetime.now(_dt.timezone.utc))
     return row
@@ -442,7 +445,7 @@ def run_chunk(chunk, *, root, sweep, experiment=None):
     cache = {}
     out = []
     for p in sorted(chunk, key=scene_key):
-        row = execute(p, sweep=sweep, experiment=experiment, cache=cache)
+        row = execute(p, sweep=sweep, experiment=experiment, cache=cache, root=root)
         _store_row(root, row)
         out.append({k: row.get(k) for k in ("run_id", "status", "error", "t_total")})
     return out

@@ -34,7 +34,7 @@ def plan(runs, *, root, sweep, rerun=False, retry_failed=False):
     stored = stored_status(root, sweep)
     todo, skipped = [], []
     for p in runs:
-        st = stored.get(run_id(p))
+        st = stored.get(run_id(p, root=root))
         if st == "ok" or (st is not None and not retry_failed):
             skipped.append(p)
         else:
@@ -136,13 +136,14 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
             got = {r["run_id"] for r in results}
             stored = stored_status(root, sweep)
             for c in pending:            # stored by the lost pool: counted, not redone
-                for rid in (run_id(p) for p in c):
+                for rid in (run_id(p, root=root) for p in c):
                     if rid in stored and rid not in got:
                         got.add(rid)
                         results.append({"run_id": rid, "status": stored[rid], "error": None,
                                         "t_total": None})
                         prog.update(1, stored[rid] != "ok")
-            pending = [[p for p in c if run_id(p) not in got and run_id(p) not in stored]
+            pending = [[p for p in c if run_id(p, root=root) not in got
+                        and run_id(p, root=root) not in stored]
                        for c in pending]
             pending = [c for c in pending if c]
             lost = f"{type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}"
@@ -151,7 +152,7 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
             if attempt == POOL_RESTARTS:
                 prog.stream.write(f"\nworker pool lost {attempt + 1} times ({lost}); completed "
                                   "runs are stored: run the same command again to resume\n")
-                failed = [{"run_id": run_id(p), "status": "failed", "error": lost,
+                failed = [{"run_id": run_id(p, root=root), "status": "failed", "error": lost,
                            "t_total": None} for c in pending for p in c]
                 prog.update(len(failed), len(failed))   # the summary counts them too
                 results.extend(failed)
@@ -221,7 +222,7 @@ def _submitit(chunks, prog, *, launcher, shards, root, sweep, experiment, folder
               jobs=1):
     shard_lists = split_shards(chunks, shards)
     ex = _executor(launcher, folder, params)
-    ids = [run_id(p) for c in chunks for p in c]
+    ids = [run_id(p, root=root) for c in chunks for p in c]
     since = time.time() - 1.0
     jobs = [ex.submit(run_shard, s, root=str(root), sweep=sweep, experiment=experiment,
                       jobs=jobs) for s in shard_lists]

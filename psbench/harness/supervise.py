@@ -190,13 +190,13 @@ def run_supervised(chunk, *, root, sweep, experiment=None, config=None, wrap=Non
         rows, started, status = _fork(todo, root, sweep, experiment, config, wrap, after)
         out.extend(rows)
         done = {r["run_id"] for r in rows}
-        todo = [p for p in todo if run_id(p) not in done]
+        todo = [p for p in todo if run_id(p, root=root) not in done]
         if status is None or not todo:
             continue
         if (os.WIFEXITED(status) and os.WEXITSTATUS(status) == 130) or (
                 os.WIFSIGNALED(status) and os.WTERMSIG(status) in _STOP):
             raise KeyboardInterrupt            # stopped by the user, not a failed run
-        culprit = next((p for p in todo if run_id(p) == started), todo[0])
+        culprit = next((p for p in todo if run_id(p, root=root) == started), todo[0])
         row = _failed(culprit, _death(status), root, sweep, experiment, config)
         out.append(row)
         todo = [p for p in todo if p is not culprit]
@@ -207,7 +207,7 @@ def _failed(p, error, root, sweep, experiment, config):
     from .run import failed_row
     from .store import write_row
 
-    row = failed_row(p, error, sweep=sweep, experiment=experiment, config=config)
+    row = failed_row(p, error, sweep=sweep, experiment=experiment, config=config, root=root)
     write_row(root, row)
     row["exc_kind"] = "killed"
     return row
@@ -227,7 +227,7 @@ def _run_one(p, root, sweep, experiment, config, cache, wrap, after, *, tolerant
     kept = {} if after is not None else None
     with (wrap() if wrap is not None else contextlib.nullcontext()):
         row = execute(p, sweep=sweep, experiment=experiment, cache=cache, config=config,
-                      keep=kept)
+                      keep=kept, root=root)
     row["exc_kind"] = _kind(row.pop("_exc", None))
     if after is not None:
         row["_note"] = after(row, kept)    # before the row: stored "ok" => its outputs
@@ -322,7 +322,7 @@ def _child(todo, w, root, sweep, experiment, config, wrap, after):
 
     cache = {}
     for p in todo:
-        _send(w, ("start", run_id(p)))
+        _send(w, ("start", run_id(p, root=root)))
         row, stored = _run_one(p, root, sweep, experiment, config, cache, wrap, after,
                                tolerant=True)
         _send(w, ("row", row, stored))

@@ -165,7 +165,8 @@ def _run_ids(key, scale):
         spec = copy.deepcopy(_grid(key))
         if not spec:
             return None
-        return frozenset(run_id(p) for p in expand(spec, scale))
+        root = "results" if key[1] == "None" else key[1]     # as the harness hashes
+        return frozenset(run_id(p, root=root) for p in expand(spec, scale))
     except Exception:  # noqa: BLE001
         return None
 

@@ -148,6 +148,34 @@ def test_run_id_stable_and_sensitive(tmp_path):
         run.normalize({"colour": 1})
 
 
+
+def test_a_moved_store_keeps_its_run_ids(tmp_path):
+    """A path inside the store (a surface file an experiment makes there, a capture folder)
+    is hashed relative to it: moving or copying the store neither re-runs its runs nor
+    hides them from the report; a path outside it still counts as given."""
+    import shutil
+
+    import numpy as np
+
+    def runs(root):
+        return [run.normalize({"surface": str(root / "made" / "z.npy"), "mask": m,
+                               "lights": "45x8"}) for m in ("None", "Th")]
+
+    old = tmp_path / "old"
+    (old / "made").mkdir(parents=True)
+    yy, xx = np.mgrid[-1:1:24j, -1:1:24j]
+    np.save(old / "made" / "z.npy", 4 * np.exp(-3 * (xx ** 2 + yy ** 2)))
+    assert shards.execute_runs(runs(old), root=old, sweep="s", jobs=1)["ok"] == 2
+    new = tmp_path / "elsewhere" / "new"
+    new.parent.mkdir()
+    shutil.move(old, new)
+    assert shards.execute_runs(runs(new), root=new, sweep="s", jobs=1)["todo"] == 0
+    ids = sorted(store.read_store(new)["run_id"])
+    assert ids == sorted(run.run_id(p, root=new) for p in runs(new))
+    # hashed relative to the store only when it is inside it
+    assert run.run_id(runs(new)[0], root=tmp_path / "other") != run.run_id(runs(new)[0], root=new)
+
+
 def _noop_runs(n, fail=()):
     return [run.normalize({"kind": "noop", "seed": i,
                            "args": {"fail": "boom"} if i in fail else {}}) for i in range(n)]
