@@ -142,9 +142,8 @@ def _joblib(chunks, prog, *, jobs, root, sweep, experiment):
                         results.append({"run_id": rid, "status": stored[rid], "error": None,
                                         "t_total": None})
                         prog.update(1, stored[rid] != "ok")
-            pending = [[p for p in c if run_id(p, root=root) not in got
-                        and run_id(p, root=root) not in stored]
-                       for c in pending]
+            seen = got | set(stored)
+            pending = [[p for p in c if run_id(p, root=root) not in seen] for c in pending]
             pending = [c for c in pending if c]
             lost = f"{type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}"
             if not pending:
