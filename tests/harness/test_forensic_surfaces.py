@@ -5,23 +5,16 @@ A run whose pixel size is known writes its heights as ``height.x3p`` in µm.
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 
 import psbench as ps
 
-_BIN = Path(sys.executable).parent / "psbench"
-CMD = [str(_BIN)] if _BIN.exists() else [sys.executable, "-m", "psbench.harness.app"]
+from _cli import run_psbench
 
 
 def psbench(*args, cwd, timeout=240):
-    env = {k: v for k, v in os.environ.items() if k not in ("PSBENCH_RESULTS", "HYDRA_FULL_ERROR")}
-    return subprocess.run(CMD + list(args), cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    return run_psbench(*args, cwd=cwd, timeout=timeout)
 
 
 def test_cartridge_min_size_is_the_generators():

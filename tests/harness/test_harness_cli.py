@@ -8,28 +8,18 @@ nothing is written to the current directory; experiments through the command lin
 import os
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
 
 from psbench.harness.store import read_store
 
-_BIN = Path(sys.executable).parent / "psbench"
-CMD = [str(_BIN)] if _BIN.exists() else [sys.executable, "-m", "psbench.harness.app"]
-
-
-def _env():
-    env = dict(os.environ)
-    for k in ("PSBENCH_RESULTS", "HYDRA_FULL_ERROR"):
-        env.pop(k, None)
-    return env
+from _cli import CMD, run_psbench
+from _cli import clean_env as _env
 
 
 def psbench(*args, cwd, timeout=120, **kw):
-    return subprocess.run(CMD + list(args), cwd=cwd, env=_env(), capture_output=True,
-                          text=True, timeout=timeout, **kw)
+    return run_psbench(*args, cwd=cwd, timeout=timeout, **kw)
 
 
 def _rows(root, sweep="adhoc"):
@@ -191,3 +181,15 @@ def pd_isna(v):
     import pandas as pd
 
     return pd.isna(v)
+
+
+def test_a_command_that_hangs_fails_with_its_stacks(tmp_path):
+    """SIGUSR2 makes every psbench process print its threads' stacks and go on; the
+    tests' runner uses it on a timeout, so a hang says where it hung."""
+    with pytest.raises(pytest.fail.Exception) as info:
+        psbench("kind=noop", "args.sleep=30", f"results_dir={tmp_path / 'res'}", "sweep=hang",
+                cwd=tmp_path, timeout=6)
+    text = str(info.value)
+    assert "did not finish in 6 s" in text
+    assert "most recent call first" in text and "supervise.py" in text, text[-3000:]
+    assert "in noop" in text, text[-3000:]             # the run process, in its sleep

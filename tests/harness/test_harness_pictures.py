@@ -2,10 +2,7 @@
 (done/total/ETA, summary best first, comparison sheet), rows that say what each figure is,
 "read" for data folders and the far-lights warning."""
 import json
-import os
 import re
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -17,18 +14,14 @@ from psbench.harness.run import execute, format_row, normalize
 from psbench.harness.store import read_store
 from psbench.io import PsbenchWarning
 
-_BIN = Path(sys.executable).parent / "psbench"
-CMD = [str(_BIN)] if _BIN.exists() else [sys.executable, "-m", "psbench.harness.app"]
+from _cli import clean_env, run_psbench
 PICTURES = ("input.png", "truth.png", "normals.png", "error.png", "ne_map.png", "albedo.png",
             "mask.png", "height.png", "run.json")
 
 
 def psbench(*args, cwd, timeout=180, tmpdir=None):
-    env = {k: v for k, v in os.environ.items() if k not in ("PSBENCH_RESULTS", "HYDRA_FULL_ERROR")}
-    if tmpdir is not None:
-        env["TMPDIR"] = str(tmpdir)
-    return subprocess.run(CMD + list(args), cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    env = clean_env() if tmpdir is None else clean_env(TMPDIR=str(tmpdir))
+    return run_psbench(*args, cwd=cwd, timeout=timeout, env=env)
 
 
 def _pictures_line(stdout):

@@ -10,7 +10,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -20,21 +19,15 @@ from psbench.harness.shards import execute_runs
 
 psutil = pytest.importorskip("psutil")
 
-_BIN = Path(sys.executable).parent / "psbench"
-CMD = [str(_BIN)] if _BIN.exists() else [sys.executable, "-m", "psbench.harness.app"]
+from _cli import CMD, run_psbench  # noqa: E402
+from _cli import clean_env as _env  # noqa: E402
+
 METRICS = ["ne_mean", "ne_median", "ne_lt5", "ne_lt10", "ne_lt20", "ie_l1", "ie_l2", "ie_linf",
            "ie_rel", "qf_hi", "qf_sh", "qf_total"]
 
 
-def _env(**kw):
-    env = {k: v for k, v in os.environ.items() if k not in ("PSBENCH_RESULTS", "HYDRA_FULL_ERROR")}
-    env.update(kw)
-    return env
-
-
 def psbench(*args, cwd, timeout=240, **kw):
-    return subprocess.run(CMD + list(args), cwd=cwd, env=_env(), capture_output=True,
-                          text=True, timeout=timeout, **kw)
+    return run_psbench(*args, cwd=cwd, timeout=timeout, **kw)
 
 
 def _no_traceback(*texts):
