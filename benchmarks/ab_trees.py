@@ -1,6 +1,6 @@
 """A/B timing of two psbench source trees in one session: a render, the solves that end in
 the per-pixel 3x3 solve (the masked solve, WPS and its oracle, robust methods on the
-compiled and the numpy path, the held-out validation) and a small experiment (table2_1
+compiled and the numpy path, the default robust and tsfit, the held-out validation) and a small experiment (table2_1
 at CI scale), each tree in fresh processes, taken in turn.
 
     python benchmarks/ab_trees.py BEFORE_TREE [AFTER_TREE] [--runs 5] [--size 256]
@@ -44,7 +44,7 @@ w = timed(lambda: ps.solve(scene.images, lay, method="wps", object_mask=surf.obj
 wo = timed(lambda: ps.solve(scene.images, lay, method="wps", weight="oracle",
                             truth_normals=surf.normals, object_mask=surf.object_mask))
 rob = {m: timed(lambda m=m: ps.solve(scene.images, lay, method=m, object_mask=surf.object_mask))
-       for m in ("trim", "huber", "sbl")}
+       for m in ("trim", "huber", "sbl", "robust", "tsfit")}
 res = ps.solve(scene.images, lay, mask="Th-Hi-Re-Sh", object_mask=surf.object_mask)
 try:                     # a tree from before the validation error has none
     from psbench.solve.validation import validate
@@ -103,7 +103,8 @@ def main(argv=None):
           f"{os.getloadavg()[0]:.1f} after")
     print("| what | before s | after s | after / before (median of rounds) |")
     print("|---|---|---|---|")
-    whats = ["render", "solve", "wps", "wps_oracle", "trim", "huber", "sbl", "validate"]
+    whats = ["render", "solve", "wps", "wps_oracle", "trim", "huber", "sbl", "robust", "tsfit",
+             "validate"]
     for what in whats + ([] if a.no_experiment else ["experiment"]):
         b = [r[what] for r in rows["before"]]
         f = [r[what] for r in rows["after"]]
