@@ -35,11 +35,13 @@ def display_path(path) -> str:
 
 
 def _num_sort(values):
+    """Numbers in numeric order, anything else in text order: never the store's row
+    order, which differs from one run of an experiment to the next."""
     vals = list(dict.fromkeys(values))
     try:
         return sorted(vals, key=float)
     except (TypeError, ValueError):
-        return vals
+        return sorted(vals)
 
 
 def _pstr(v):

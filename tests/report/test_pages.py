@@ -200,3 +200,18 @@ def test_psbench_own_questions_are_shown_apart_and_not_counted(report):
     man = json.loads((report / "report.json").read_text())
     assert sum(man["experiments"]["table5_3"][s] for s in STATUSES) == \
         sum(_page_tally(html).values())
+
+
+def test_parameter_lists_do_not_follow_the_store_order():
+    """A page's parameter table lists values in one order, whatever order the store
+    returned the rows in (a reproduction must give the same page)."""
+    import pandas as pd
+
+    from psbench.report.pages import _parameters
+
+    rows = pd.DataFrame({"lights": ["45x8", "30x8", "60x8", "30x8"], "noise": [0.1, 0.0, 0.2, 0.0]})
+    a = _parameters(rows).to_dict("records")
+    b = _parameters(rows.iloc[::-1]).to_dict("records")
+    assert a == b
+    assert a[0] == {"parameter": "lights", "values": "30x8, 45x8, 60x8"}
+    assert a[1] == {"parameter": "noise", "values": "0, 0.1, 0.2"}
