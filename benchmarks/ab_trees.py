@@ -1,7 +1,7 @@
 """A/B timing of two psbench source trees in one session: a render, the solves that end in
 the per-pixel 3x3 solve (the masked solve, WPS and its oracle, robust methods on the
-compiled and the numpy path, the default robust and tsfit, the held-out validation) and a small experiment (table2_1
-at CI scale), each tree in fresh processes, taken in turn.
+compiled and the numpy path, the default robust and tsfit, the held-out validation) and
+a small experiment (table2_1 at CI scale), each tree in fresh processes, taken in turn.
 
     python benchmarks/ab_trees.py BEFORE_TREE [AFTER_TREE] [--runs 5] [--size 256]
                                   [--no-experiment]
