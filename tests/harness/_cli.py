@@ -37,13 +37,11 @@ def _tree(pid):
     return [pid]
 
 
-def run_psbench(*args, cwd, timeout, env=None, **kw):
-    """``subprocess.run(CMD + args)`` with text output captured; a timeout fails the test
-    with the stacks of every process of the command."""
-    proc = subprocess.Popen(CMD + list(args), cwd=cwd, env=clean_env() if env is None else env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+def communicate(proc, *, timeout, what):
+    """``proc.communicate(timeout=)``; on a timeout, the stacks of every process of its
+    tree (SIGUSR2), then all of them killed and the test failed with the stacks."""
     try:
-        out, err = proc.communicate(timeout=timeout)
+        return proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         pids = _tree(proc.pid)
         for pid in pids:                       # one at a time: their dumps do not interleave
@@ -54,6 +52,14 @@ def run_psbench(*args, cwd, timeout, env=None, **kw):
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
         out, err = proc.communicate()
-        pytest.fail(f"psbench {' '.join(args)} did not finish in {timeout} s "
-                    f"(processes {pids}); its stderr and stacks:\n{err[-8000:]}")
+        pytest.fail(f"{what} did not finish in {timeout} s (processes {pids}); its stderr "
+                    f"and stacks:\n{err[-8000:]}")
+
+
+def run_psbench(*args, cwd, timeout, env=None, **kw):
+    """``subprocess.run(CMD + args)`` with text output captured; a timeout fails the test
+    with the stacks of every process of the command."""
+    proc = subprocess.Popen(CMD + list(args), cwd=cwd, env=clean_env() if env is None else env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+    out, err = communicate(proc, timeout=timeout, what=f"psbench {' '.join(args)}")
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)

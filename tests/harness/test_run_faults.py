@@ -19,7 +19,7 @@ from psbench.harness.shards import execute_runs
 
 psutil = pytest.importorskip("psutil")
 
-from _cli import CMD, run_psbench  # noqa: E402
+from _cli import CMD, communicate, run_psbench  # noqa: E402
 from _cli import clean_env as _env  # noqa: E402
 
 METRICS = ["ne_mean", "ne_median", "ne_lt5", "ne_lt10", "ne_lt20", "ie_l1", "ie_l2", "ie_linf",
@@ -328,7 +328,7 @@ def test_sweep_survives_a_lost_worker(tmp_path):
         assert proc.poll() is None, proc.communicate()[1][-2000:]
         before = {f.name: f.stat().st_mtime_ns for f in runs.glob("*.parquet")}
         worker.kill()
-        out, err = proc.communicate(timeout=300)
+        out, err = communicate(proc, timeout=300, what="the sweep with a lost worker")
     finally:
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(proc.pid, signal.SIGKILL)
