@@ -14,6 +14,18 @@ whole fit of a direction (1 - h_i <= ``LEVER``).
 
 Layout: lights first, pixels last ((k, n) float32 observations and weights); each
 pixel is independent (``prange`` over blocks of pixels; no reduction across pixels).
+Inside a block the loops run light by light over the block's pixels, with the
+per-pixel choices as selects, so that the pixel loop vectorises; every pixel's sums
+still run over its lights in order, so the results do not depend on the block size
+or the vector width (no fast-math: each value is the plain IEEE expression).
+
+The median of a pixel's |e_i| (its validation error, :func:`abs_median`, and in the
+same pass with the errors) is a bitwise selection, vectorised over the pixels: for
+non-negative float32 values the order of the bit patterns as integers is the order of
+the values, so the h-th smallest pattern is built bit by bit from the top (keep a bit
+when at most h patterns lie below the candidate). It selects a value, never computes
+one, so it is exactly the median ``np.nanmedian`` gives (an even count averages the two
+middle values in float32).
 """
 from __future__ import annotations
 
@@ -27,124 +39,158 @@ from .methods.tsfit._kernel import _acos, _expm, _light
 
 __all__ = ["lambert_errors", "ts_errors", "abs_median", "LEVER"]
 
-#: pixels per prange task
+#: pixels per prange task (Torrance-Sparrow: its per-observation gradients are kept
+#: for the block, 4 x (k, TS_BLOCK) float64)
 BLOCK = 256
+TS_BLOCK = 64
 #: smallest 1 - h_i for which the held-out error is defined
 LEVER = 1e-3
+#: the bit pattern of a value left out of a median: above every finite float32 and inf
+OUT = np.int32(0x7FFFFFFF)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def lambert_errors(I, S, w, out):
+def lambert_errors(I, S, w, out, med):
     """Held-out errors of the weighted Lambertian least-squares fit of each pixel.
 
     I (k, n) float32, S (k, 3) float64 (rows s_i = mu_i d_i), w (k, n) float32 or
-    uint8 (>0: used); out (k, n) float32. The fit is recomputed from ``w`` (it is the
-    method's solution for the masks and the Lambertian robust solvers)."""
+    uint8 (>0: used); out (k, n) float32; med (n,) float32, or (0,) to skip it: the
+    median |e_i| over the used, finite errors (as :func:`abs_median`, in the same
+    pass). The fit is recomputed from ``w`` (it is the method's solution for the masks
+    and the Lambertian robust solvers)."""
     k, n = I.shape
     nb = (n + BLOCK - 1) // BLOCK
+    want = med.shape[0] > 0
     for blk in prange(nb):
         lo, hi = blk * BLOCK, min(n, (blk + 1) * BLOCK)
-        for p in range(lo, hi):
-            a00 = a01 = a02 = a11 = a12 = a22 = 0.0
-            r0 = r1 = r2 = 0.0
-            for i in range(k):
-                wi = float(w[i, p])
+        B = hi - lo
+        A = np.zeros((9, BLOCK))   # the normal matrix (6) and right-hand side (3)
+        for i in range(k):
+            sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
+            for q in range(B):
+                wi = float(w[i, lo + q])
                 if wi > 0.0:
-                    sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
-                    v = wi * float(I[i, p])
-                    a00 += wi * sx * sx
-                    a01 += wi * sx * sy
-                    a02 += wi * sx * sz
-                    a11 += wi * sy * sy
-                    a12 += wi * sy * sz
-                    a22 += wi * sz * sz
-                    r0 += v * sx
-                    r1 += v * sy
-                    r2 += v * sz
-            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
-                                                              HELDOUT_RCOND)
-            if not ok:
-                for i in range(k):
-                    out[i, p] = np.nan
-                continue
-            bx = b00 * r0 + b01 * r1 + b02 * r2
-            by = b01 * r0 + b11 * r1 + b12 * r2
-            bz = b02 * r0 + b12 * r1 + b22 * r2
-            for i in range(k):
-                sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
-                r = float(I[i, p]) - (sx * bx + sy * by + sz * bz)
+                    v = wi * float(I[i, lo + q])
+                    A[0, q] += wi * sx * sx
+                    A[1, q] += wi * sx * sy
+                    A[2, q] += wi * sx * sz
+                    A[3, q] += wi * sy * sy
+                    A[4, q] += wi * sy * sz
+                    A[5, q] += wi * sz * sz
+                    A[6, q] += v * sx
+                    A[7, q] += v * sy
+                    A[8, q] += v * sz
+        X = np.empty((9, BLOCK))   # the inverse (6) and the solution (3)
+        okv = np.empty(BLOCK, dtype=np.bool_)
+        for q in range(B):
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(A[0, q], A[1, q], A[2, q], A[3, q],
+                                                         A[4, q], A[5, q], HELDOUT_RCOND)
+            r0, r1, r2 = A[6, q], A[7, q], A[8, q]
+            X[0, q], X[1, q], X[2, q], X[3, q], X[4, q], X[5, q] = b00, b01, b02, b11, b12, b22
+            X[6, q] = b00 * r0 + b01 * r1 + b02 * r2
+            X[7, q] = b01 * r0 + b11 * r1 + b12 * r2
+            X[8, q] = b02 * r0 + b12 * r1 + b22 * r2
+            okv[q] = ok
+        U = np.empty((k, BLOCK), dtype=np.int32)   # |e_i| bit patterns for the median
+        Uf = U.view(np.float32)
+        cnt = np.zeros(BLOCK, dtype=np.int32)
+        for i in range(k):
+            sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
+            for q in range(B):
+                p = lo + q
+                r = float(I[i, p]) - (sx * X[6, q] + sy * X[7, q] + sz * X[8, q])
                 wi = float(w[i, p])
-                if wi > 0.0:
-                    h = wi * (b00 * sx * sx + b11 * sy * sy + b22 * sz * sz
-                              + 2.0 * (b01 * sx * sy + b02 * sx * sz + b12 * sy * sz))
-                    out[i, p] = r / (1.0 - h) if 1.0 - h > LEVER else np.nan
-                else:
-                    out[i, p] = r
+                h = wi * (X[0, q] * sx * sx + X[3, q] * sy * sy + X[5, q] * sz * sz
+                          + 2.0 * (X[1, q] * sx * sy + X[2, q] * sx * sz + X[4, q] * sy * sz))
+                e = np.float32(r / (1.0 - h)) if 1.0 - h > LEVER else np.float32(np.nan)
+                o = e if wi > 0.0 else np.float32(r)
+                out[i, p] = o if okv[q] else np.float32(np.nan)
+                _put(U, Uf, cnt, i, q, e, wi > 0.0 and okv[q])
+        if want:
+            _block_median(U, cnt, B, med, lo)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def ts_errors(tab, I, w, n, rd, rs, m, out):
+def ts_errors(tab, I, w, n, rd, rs, m, out, med):
     """Held-out errors of the Lambert + Torrance-Sparrow fit of each pixel, to first
     order in its per-pixel unknowns rho * n (rho_s and m held at their fitted values).
 
     tab (7, k) the light table of :func:`psbench.solve.methods.tsfit._kernel.tables`;
     I (k, n) float32; w (k, n) float32 or uint8; n (3, n) unit normals; rd, rs, m (n,)
-    float32; out (k, n) float32. The model's gradient in b = rho_d n is
+    float32; out (k, n) float32; med (n,) float32 or (0,), as in :func:`lambert_errors`.
+    The model's gradient in b = rho_d n is
     mu_i [d_i + (2 m^2 rho_s E_i theta_i / sin theta_i / rho_d) (h_i - (h_i . n) n)] on
-    lit observations, 0 in self shadow."""
+    lit observations, 0 in self shadow (where the residual is the observation)."""
     k, P = I.shape
-    nb = (P + BLOCK - 1) // BLOCK
+    nb = (P + TS_BLOCK - 1) // TS_BLOCK
+    want = med.shape[0] > 0
     for blk in prange(nb):
-        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
-        J = np.empty((k, 3))
-        R = np.empty(k)
-        for p in range(lo, hi):
-            nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
-            rdp, rsp, m2 = float(rd[p]), float(rs[p]), float(m[p]) ** 2
-            kap = 2.0 * m2 * rsp / rdp if rdp > 0.0 else 0.0
-            a00 = a01 = a02 = a11 = a12 = a22 = 0.0
-            for i in range(k):
-                dx, dy, dz, hx, hy, hz, mu = _light(tab, i)
+        lo, hi = blk * TS_BLOCK, min(P, (blk + 1) * TS_BLOCK)
+        B = hi - lo
+        R = np.empty((k, TS_BLOCK))
+        JX = np.empty((k, TS_BLOCK))   # the gradients of the observations
+        JY = np.empty((k, TS_BLOCK))
+        JZ = np.empty((k, TS_BLOCK))
+        A = np.zeros((6, TS_BLOCK))
+        kap = np.empty(TS_BLOCK)
+        m2v = np.empty(TS_BLOCK)
+        for q in range(B):
+            rdp, rsp, m2 = float(rd[lo + q]), float(rs[lo + q]), float(m[lo + q]) ** 2
+            kap[q] = 2.0 * m2 * rsp / rdp if rdp > 0.0 else 0.0
+            m2v[q] = m2
+        for i in range(k):
+            dx, dy, dz, hx, hy, hz, mu = _light(tab, i)
+            for q in range(B):
+                p = lo + q
+                nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
                 c = dx * nx + dy * ny + dz * nz
                 wi = float(w[i, p])
-                if c <= 0.0:    # self shadow: the model is 0 and so is its gradient
-                    R[i] = float(I[i, p])
-                    J[i, 0], J[i, 1], J[i, 2] = 0.0, 0.0, 0.0
-                    continue
+                Iv = float(I[i, p])
                 ch = min(max(hx * nx + hy * ny + hz * nz, -1.0), 1.0)
                 th = _acos(ch)
-                e = _expm(m2 * th * th)
-                R[i] = float(I[i, p]) - mu * (rdp * c + rsp * e)
-                if wi > 0.0:    # the gradient is needed for the observations fitted
-                    sn = math.sqrt(max(1.0 - ch * ch, 0.0))
-                    bt = kap * e * (th / sn if sn > 1e-6 else 1.0)
-                    jx = mu * (dx + bt * (hx - ch * nx))
-                    jy = mu * (dy + bt * (hy - ch * ny))
-                    jz = mu * (dz + bt * (hz - ch * nz))
-                else:
-                    jx = jy = jz = 0.0
-                J[i, 0], J[i, 1], J[i, 2] = jx, jy, jz
-                if wi > 0.0:
-                    a00 += wi * jx * jx
-                    a01 += wi * jx * jy
-                    a02 += wi * jx * jz
-                    a11 += wi * jy * jy
-                    a12 += wi * jy * jz
-                    a22 += wi * jz * jz
-            b00, b01, b02, b11, b12, b22, ok = inv_sym3(a00, a01, a02, a11, a12, a22,
-                                                              HELDOUT_RCOND)
-            for i in range(k):
+                e = _expm(m2v[q] * th * th)
+                lit = c > 0.0
+                r = Iv - mu * (float(rd[p]) * c + float(rs[p]) * e)
+                R[i, q] = r if lit else Iv
+                sn = math.sqrt(max(1.0 - ch * ch, 0.0))
+                bt = kap[q] * e * (th / sn if sn > 1e-6 else 1.0)
+                use = lit and wi > 0.0   # the gradient of the observations fitted
+                jx = mu * (dx + bt * (hx - ch * nx)) if use else 0.0
+                jy = mu * (dy + bt * (hy - ch * ny)) if use else 0.0
+                jz = mu * (dz + bt * (hz - ch * nz)) if use else 0.0
+                JX[i, q] = jx
+                JY[i, q] = jy
+                JZ[i, q] = jz
+                if use:
+                    A[0, q] += wi * jx * jx
+                    A[1, q] += wi * jx * jy
+                    A[2, q] += wi * jx * jz
+                    A[3, q] += wi * jy * jy
+                    A[4, q] += wi * jy * jz
+                    A[5, q] += wi * jz * jz
+        X = np.empty((6, TS_BLOCK))
+        okv = np.empty(TS_BLOCK, dtype=np.bool_)
+        for q in range(B):
+            b00, b01, b02, b11, b12, b22, ok = inv_sym3(A[0, q], A[1, q], A[2, q], A[3, q],
+                                                         A[4, q], A[5, q], HELDOUT_RCOND)
+            X[0, q], X[1, q], X[2, q], X[3, q], X[4, q], X[5, q] = b00, b01, b02, b11, b12, b22
+            okv[q] = ok
+        U = np.empty((k, TS_BLOCK), dtype=np.int32)
+        Uf = U.view(np.float32)
+        cnt = np.zeros(TS_BLOCK, dtype=np.int32)
+        for i in range(k):
+            for q in range(B):
+                p = lo + q
                 wi = float(w[i, p])
-                if wi > 0.0:
-                    if not ok:
-                        out[i, p] = np.nan
-                        continue
-                    jx, jy, jz = J[i, 0], J[i, 1], J[i, 2]
-                    h = wi * (b00 * jx * jx + b11 * jy * jy + b22 * jz * jz
-                              + 2.0 * (b01 * jx * jy + b02 * jx * jz + b12 * jy * jz))
-                    out[i, p] = R[i] / (1.0 - h) if 1.0 - h > LEVER else np.nan
-                else:
-                    out[i, p] = R[i]
+                jx, jy, jz = JX[i, q], JY[i, q], JZ[i, q]
+                h = wi * (X[0, q] * jx * jx + X[3, q] * jy * jy + X[5, q] * jz * jz
+                          + 2.0 * (X[1, q] * jx * jy + X[2, q] * jx * jz + X[4, q] * jy * jz))
+                e = np.float32(R[i, q] / (1.0 - h)) if 1.0 - h > LEVER else np.float32(np.nan)
+                e = e if okv[q] else np.float32(np.nan)
+                out[i, p] = e if wi > 0.0 else np.float32(R[i, q])
+                _put(U, Uf, cnt, i, q, e, wi > 0.0)
+        if want:
+            _block_median(U, cnt, B, med, lo)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -158,62 +204,64 @@ def abs_median(e, used, out):
     nb = (n + BLOCK - 1) // BLOCK
     for blk in prange(nb):
         lo, hi = blk * BLOCK, min(n, (blk + 1) * BLOCK)
-        # gather light by light (rows are contiguous in pixels), select pixel by pixel
-        bufs = np.empty((hi - lo, k), dtype=np.float32)
-        cnt = np.zeros(hi - lo, dtype=np.int64)
+        U = np.empty((k, BLOCK), dtype=np.int32)
+        Uf = U.view(np.float32)
+        cnt = np.zeros(BLOCK, dtype=np.int32)
         for i in range(k):
-            for p in range(lo, hi):
-                v = e[i, p]
-                if used[i, p] and math.isfinite(v):
-                    bufs[p - lo, cnt[p - lo]] = abs(v)
-                    cnt[p - lo] += 1
-        for p in range(lo, hi):
-            buf = bufs[p - lo]
-            c = cnt[p - lo]
-            if c == 0:
-                out[p] = np.nan
-                continue
-            h = c // 2
-            hi_v = _select(buf, c, h)
-            if c % 2 == 1:
-                out[p] = hi_v
-            else:
-                lo_v = buf[0]  # after the selection buf[:h] holds the h smallest
-                for i in range(1, h):
-                    if buf[i] > lo_v:
-                        lo_v = buf[i]
-                out[p] = np.float32(lo_v + hi_v) / np.float32(2.0)
+            for q in range(hi - lo):
+                _put(U, Uf, cnt, i, q, e[i, lo + q], used[i, lo + q] != 0)
+        _block_median(U, cnt, hi - lo, out, lo)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _select(a, c, h):
-    """The h-th smallest of a[:c] (0-based), partitioning a[:c] in place so that a[:h]
-    holds the h smallest (Hoare's selection; a value is selected, never computed)."""
-    lo, hi = 0, c - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        # median of three as the pivot
-        if a[mid] < a[lo]:
-            a[mid], a[lo] = a[lo], a[mid]
-        if a[hi] < a[lo]:
-            a[hi], a[lo] = a[lo], a[hi]
-        if a[hi] < a[mid]:
-            a[hi], a[mid] = a[mid], a[hi]
-        pivot = a[mid]
-        i, j = lo, hi
-        while i <= j:
-            while a[i] < pivot:
-                i += 1
-            while a[j] > pivot:
-                j -= 1
-            if i <= j:
-                a[i], a[j] = a[j], a[i]
-                i += 1
-                j -= 1
-        if h <= j:
-            hi = j
-        elif h >= i:
-            lo = i
+def _put(U, Uf, cnt, i, q, e, used):
+    """Enter |e| (float32) as pixel q's i-th candidate of its median when used and
+    finite (else OUT), counting it (``Uf``: ``U`` viewed as float32)."""
+    good = used and math.isfinite(e)
+    Uf[i, q] = abs(e)
+    if not good:
+        U[i, q] = OUT
+    cnt[q] += np.int32(good)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _block_median(U, cnt, B, med, lo):
+    """med[lo + q] for q < B: the median of the cnt[q] non-negative float32 values whose
+    bit patterns are the entries of U[:, q] below OUT (NaN if none; see the module
+    docstring)."""
+    k, nq = U.shape
+    ans = np.zeros(nq, dtype=np.int32)
+    h = np.empty(nq, dtype=np.int32)
+    s = np.empty(nq, dtype=np.int32)
+    for q in range(B):
+        h[q] = cnt[q] // 2
+    # the largest pattern a with #(U < a) <= h: the h-th smallest (0-based)
+    for b in range(30, -1, -1):
+        bit = np.int32(1 << b)
+        for q in range(B):
+            s[q] = 0
+        for i in range(k):
+            for q in range(B):
+                s[q] += np.int32(U[i, q] < (ans[q] | bit))
+        for q in range(B):
+            if s[q] <= h[q]:
+                ans[q] |= bit
+    # an even count also needs the (h-1)-th: the largest pattern below, or a tie
+    below = np.zeros(nq, dtype=np.int32)
+    lo_u = np.zeros(nq, dtype=np.int32)
+    for i in range(k):
+        for q in range(B):
+            u = U[i, q]
+            lt = u < ans[q]
+            below[q] += np.int32(lt)
+            lo_u[q] = max(lo_u[q], u if lt else np.int32(0))
+    hv, lv = ans.view(np.float32), lo_u.view(np.float32)
+    for q in range(B):
+        c = cnt[q]
+        if c == 0:
+            med[lo + q] = np.float32(np.nan)
+        elif c % 2 == 1:
+            med[lo + q] = hv[q]
         else:
-            return a[h]
-    return a[h]
+            low = lv[q] if below[q] >= h[q] else hv[q]
+            med[lo + q] = np.float32(low + hv[q]) / np.float32(2.0)

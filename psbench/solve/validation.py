@@ -68,7 +68,7 @@ def _w(w):
     return w.view(np.uint8) if w.dtype == bool else w.astype(np.float32, copy=False)
 
 
-def lambert_heldout(I, S, w):
+def lambert_heldout(I, S, w, *, median=False):
     """Held-out errors (k, n) float32 of the weighted Lambertian fit of each pixel.
 
     Parameters
@@ -79,40 +79,53 @@ def lambert_heldout(I, S, w):
         Light vectors (direction times power).
     w : (k, n) float32 or bool
         The fit's weights (> 0: used).
+    median : bool
+        Also return the median |e_i| over each pixel's used observations (the
+        ``median`` of :func:`validation_map`, computed in the same pass).
 
     Returns
     -------
     (k, n) float32
         e_i = i - predicted i by the fit without observation i for used observations,
         the plain residual for unused ones; NaN where undefined.
+    (n,) float32, only with ``median``
     """
     I = np.ascontiguousarray(I, dtype=np.float32)
     out = np.empty_like(I)
-    _hk.lambert_errors(I, np.ascontiguousarray(S, dtype=np.float64), _w(w), out)
-    return out
+    med = np.empty(I.shape[1] if median else 0, dtype=np.float32)
+    _hk.lambert_errors(I, np.ascontiguousarray(S, dtype=np.float64), _w(w), out, med)
+    return (out, med) if median else out
 
 
-def ts_heldout(I, table, w, n, rd, rs, m):
+def ts_heldout(I, table, w, n, rd, rs, m, *, median=False):
     """Held-out errors (k, p) float32 of a Lambert + Torrance-Sparrow fit, to first order.
 
     ``table`` is :attr:`psbench.solve.methods.tsfit._lm.Lights.table`; ``n`` (3, p) unit
-    normals; ``rd``, ``rs``, ``m`` (p,) the fitted rho_d, rho_s and lobe width."""
+    normals; ``rd``, ``rs``, ``m`` (p,) the fitted rho_d, rho_s and lobe width;
+    ``median`` as in :func:`lambert_heldout`."""
     I = np.ascontiguousarray(I, dtype=np.float32)
     out = np.empty_like(I)
+    med = np.empty(I.shape[1] if median else 0, dtype=np.float32)
     f = lambda a: np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float32),  # noqa: E731
                                                        (I.shape[1],)))
     _hk.ts_errors(table, I, _w(w), np.ascontiguousarray(n, dtype=np.float32), f(rd), f(rs),
-                  f(m), out)
-    return out
+                  f(m), out, med)
+    return (out, med) if median else out
 
 
-def validation_map(e, used, I):
+def validation_map(e, used, I, *, median=None):
     """Per-pixel validation error (n,) float32: median |e| over the used observations
-    divided by the pixel's mean observation (see the module docstring)."""
+    divided by the pixel's mean observation (see the module docstring).
+
+    ``median`` (n,) float32: that median when the held-out pass computed it
+    (``lambert_heldout(..., median=True)``); ``e`` is then not read."""
     used = np.ascontiguousarray(np.asarray(used) > 0)
     cnt = used.sum(axis=0)
-    med = np.empty(used.shape[1], dtype=np.float32)
-    _hk.abs_median(np.ascontiguousarray(e, dtype=np.float32), used.view(np.uint8), med)
+    if median is not None:
+        med = np.asarray(median, dtype=np.float32)
+    else:
+        med = np.empty(used.shape[1], dtype=np.float32)
+        _hk.abs_median(np.ascontiguousarray(e, dtype=np.float32), used.view(np.uint8), med)
     s = I.mean(axis=0, dtype=np.float64)
     floor = 1e-6 * max(float(s.mean()), 1e-30)
     out = (med / np.maximum(s, floor)).astype(np.float32)
@@ -156,7 +169,8 @@ def validate(images, lights, weights, *, object_mask=None) -> Validation:
         sel = idx[lo:lo + BLOCK]
         I = np.ascontiguousarray(flat[:, sel], dtype=np.float32)
         w = np.ascontiguousarray(wflat[:, sel])
-        vals[lo:lo + sel.size] = validation_map(lambert_heldout(I, S, w), w, I)
+        e, med = lambert_heldout(I, S, w, median=True)
+        vals[lo:lo + sel.size] = validation_map(e, w, I, median=med)
     return summarise(vals, idx, (H, W))
 
 

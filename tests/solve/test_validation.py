@@ -103,3 +103,30 @@ def test_validation_map_median_is_nanmedian_bit_for_bit():
         out = np.empty(n, np.float32)
         hk.abs_median(e, used.view(np.uint8), out)
         np.testing.assert_array_equal(out, ref)
+
+
+def test_fused_median_equals_the_separate_pass():
+    """The median the held-out kernels compute in their pass is abs_median of their
+    errors, bit for bit (Lambert and Torrance-Sparrow, float and bool weights)."""
+    from psbench.solve import _heldout_kernel as hk
+    from psbench.solve.methods.tsfit import _lm
+    from psbench.solve.validation import ts_heldout
+    rng = np.random.default_rng(5)
+    k, n = 24, 700
+    d = rng.normal(size=(k, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 0.3
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    I = rng.random((k, n)).astype(np.float32)
+    nrm = rng.normal(size=(3, n))
+    nrm[2] = np.abs(nrm[2]) + 0.5
+    nrm = (nrm / np.linalg.norm(nrm, axis=0)).astype(np.float32)
+    L = _lm.Lights(d, np.ones(k))
+    for w in (rng.random((k, n)) < 0.7, (rng.random((k, n)) * (rng.random((k, n)) < 0.8))
+              .astype(np.float32)):
+        w[:, :5] = 0   # pixels without observations: NaN
+        for e, med in (lambert_heldout(I, d, w, median=True),
+                       ts_heldout(I, L.table, w, nrm, 0.5, 0.3, 4.0, median=True)):
+            ref = np.empty(n, np.float32)
+            hk.abs_median(e, (np.asarray(w) > 0).view(np.uint8), ref)
+            np.testing.assert_array_equal(med, ref)
+            assert np.isnan(med[:5]).all() and np.isfinite(med[5:]).all()

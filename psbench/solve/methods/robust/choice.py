@@ -236,7 +236,7 @@ def robust(problem, options: RobustOptions):
     # held-out errors of the trimmed fit (its ve, and the fallback's reference) and of
     # the Torrance-Sparrow fit (computed by tsfit for its ve)
     from ...validation import lambert_heldout
-    e_l = lambert_heldout(px.Ik, px.S, keep)
+    e_l, med_l = lambert_heldout(px.Ik, px.S, keep, median=True)
     e_t = ts.heldout[0] if ts.heldout is not None else None
     fell = None
     if options.fallback and e_t is not None:
@@ -266,7 +266,7 @@ def robust(problem, options: RobustOptions):
             warnings.warn(str(w.message), w.category, stacklevel=2)
     fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
-    fit.fields["ve"] = ve = _validation(px, keep, use_t, ts.fields.get("ve"), e_l)
+    fit.fields["ve"] = ve = _validation(px, keep, use_t, ts.fields.get("ve"), med_l)
     if fell is not None:
         fit.fields["fallback"] = px.image(fell, fill=False)
     if e_t is not None:   # for a method started from robust (tsfit) and its fallback
@@ -276,15 +276,16 @@ def robust(problem, options: RobustOptions):
     return fit
 
 
-def _validation(px, keep, use_t, ve_t, e_l):
+def _validation(px, keep, use_t, ve_t, med_l):
     """The validation error of the chosen fit per pixel: the Torrance-Sparrow fit's
-    where it was chosen, the trimmed Lambertian fit's (held out over its kept
-    observations, ``e_l``) elsewhere (:mod:`psbench.solve.validation`)."""
+    where it was chosen, the trimmed Lambertian fit's (the median of its held-out
+    errors over its kept observations, ``med_l``) elsewhere
+    (:mod:`psbench.solve.validation`)."""
     from ...validation import summarise, validation_map
     I = px.Ik
     # over every pixel: validation_map's intensity floor is a fraction of the mean over
     # the pixels it is given, so a subset would change it
-    vals = validation_map(e_l, keep, I)
+    vals = validation_map(None, keep, I, median=med_l)
     if ve_t is not None:
         t = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
         vals = np.where(use_t, t, vals)

@@ -458,8 +458,9 @@ def _heldout(L, I, w, n, rd, rs, m):
     vals = np.empty(P, dtype=np.float32)
     for lo in range(0, P, 1 << 16):
         s = slice(lo, lo + (1 << 16))
-        e[:, s] = ts_heldout(I[:, s], L.table, w[:, s], n[:, s], rd[s], rs[s], m[s])
-        vals[s] = validation_map(e[:, s], w[:, s], I[:, s])
+        e[:, s], med = ts_heldout(I[:, s], L.table, w[:, s], n[:, s], rd[s], rs[s], m[s],
+                                  median=True)
+        vals[s] = validation_map(None, w[:, s], I[:, s], median=med)
     return e, vals
 
 
