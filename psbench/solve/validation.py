@@ -106,8 +106,9 @@ def ts_heldout(I, table, w, n, rd, rs, m, *, median=False):
     I = np.ascontiguousarray(I, dtype=np.float32)
     out = np.empty_like(I)
     med = np.empty(I.shape[1] if median else 0, dtype=np.float32)
-    f = lambda a: np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float32),  # noqa: E731
-                                                       (I.shape[1],)))
+    # always a fresh writable copy (p floats): numba compiles read-only arrays separately
+    f = lambda a: np.array(np.broadcast_to(np.asarray(a, np.float32),  # noqa: E731
+                                           (I.shape[1],)))
     _hk.ts_errors(table, I, _w(w), np.ascontiguousarray(n, dtype=np.float32), f(rd), f(rs),
                   f(m), out, med)
     return (out, med) if median else out

@@ -280,21 +280,47 @@ def lm_fit(tab, I, w, n, rd_, rs_, m_, rs_max, fit_rs, fit_m, m_lo, m_hi, max_it
         S = np.empty(NSUM)
         A, Ad = np.empty((5, 5)), np.empty((5, 5))
         g, x = np.empty(5), np.empty(5)
-        t, t2 = np.empty((2, 3)), np.empty((2, 3))
+        t = np.empty((2, 3))
         ix = np.array([0, 1, 2, 3 if fit_rs else 4, 4])
         for p in range(blk * BLOCK, min(P, (blk + 1) * BLOCK)):
             _load(I, w, p, Ip, wp)
             nx, ny, nz = float(n[0, p]), float(n[1, p]), float(n[2, p])
             rd, rs, m = float(rd_[p]), float(rs_[p]), float(m_[p])
             rsm = float(rs_max[p])
-            _tangents(nx, ny, nz, t)
-            c0 = _cost(tab, Ip, wp, nx, ny, nz, rd, rs, m, C, CH, TH, E, R)
-            _sums(tab, wp, rd, rs, m, t, C, CH, TH, E, R, S)
-            _unpack(S, ix, q, A, g)
+            # One evaluation site for the cost and one for the sums: each inlined
+            # helper is compiled once (three copies of _cost took most of the
+            # kernel's compile time). The first pass evaluates the start; later
+            # passes evaluate the proposed step p.
+            px, py, pz, rd2, rs2, m2 = nx, ny, nz, rd, rs, m
+            c0 = 0.0
             lam = 1e-3
             it = 0
             done = False
-            while it < max_iter:
+            first = True
+            final = False  # a small step across a terminator: evaluated, then stop
+            ok = True
+            while True:
+                c2 = _cost(tab, Ip, wp, px, py, pz, rd2, rs2, m2, C, CH, TH, E, R)
+                if first:
+                    accept = True
+                elif final:
+                    accept = c2 < c0
+                else:
+                    accept = ok and c2 < c0 and math.isfinite(c2)
+                if accept:
+                    nx, ny, nz, rd, rs, m, c0 = px, py, pz, rd2, rs2, m2, c2
+                if final:
+                    done = True
+                    break
+                if accept:
+                    _tangents(nx, ny, nz, t)
+                    _sums(tab, wp, rd, rs, m, t, C, CH, TH, E, R, S)
+                    _unpack(S, ix, q, A, g)
+                if not first:
+                    lam = max(lam * 0.2 if accept else lam * 8.0, 1e-9)
+                first = False
+                if it >= max_iter:
+                    break
                 # Marquardt damping scaled by the diagonal, floored for unknowns
                 # without information (e.g. m where rho_s = 0)
                 tr = 0.0
@@ -337,28 +363,13 @@ def lm_fit(tab, I, w, n, rd_, rs_, m_, rs_max, fit_rs, fit_m, m_lo, m_hi, max_it
                     # a step below tol is taken without evaluating it (the model is
                     # smooth to second order there) unless it moves the normal across
                     # a self-shadow terminator, where the model jumps by the lobe
+                    if ok and small and _crosses(tab, nx, ny, nz, px, py, pz):
+                        final = True
+                        continue
                     if ok and small:
-                        if _crosses(tab, nx, ny, nz, px, py, pz):
-                            c2 = _cost(tab, Ip, wp, px, py, pz, rd2, rs2, m2, C, CH, TH, E, R)
-                            if c2 < c0:
-                                nx, ny, nz, rd, rs, m, c0 = px, py, pz, rd2, rs2, m2, c2
-                        else:
-                            nx, ny, nz, rd, rs, m = px, py, pz, rd2, rs2, m2
+                        nx, ny, nz, rd, rs, m = px, py, pz, rd2, rs2, m2
                     done = True
                     break
-                c2 = _cost(tab, Ip, wp, px, py, pz, rd2, rs2, m2, C, CH, TH, E, R)
-                if ok and c2 < c0 and math.isfinite(c2):
-                    nx, ny, nz, rd, rs, m, c0 = px, py, pz, rd2, rs2, m2, c2
-                    _tangents(nx, ny, nz, t2)
-                    for i in range(2):
-                        for j in range(3):
-                            t[i, j] = t2[i, j]
-                    _sums(tab, wp, rd, rs, m, t, C, CH, TH, E, R, S)
-                    _unpack(S, ix, q, A, g)
-                    lam *= 0.2
-                else:  # rejected: only its cost was computed
-                    lam *= 8.0
-                lam = max(lam, 1e-9)
             n[0, p], n[1, p], n[2, p] = nx, ny, nz
             rd_[p], rs_[p], m_[p] = rd, rs, m
             iters[p] = it

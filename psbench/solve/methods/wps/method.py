@@ -167,7 +167,10 @@ def _ring_setup(lay, rings, options, truth, N):
     weight, R = options.weight, len(rings)
     zen, rank = _ranks(lay, rings)
     kind = {"None": _k.KIND_NONE, "oracle": _k.KIND_ORACLE}.get(weight, _k.KIND_E)
-    share = np.array([np.float32(idx.size / lay.S.shape[0]) for idx in rings])
+    # float32 values held as float64, like every other factor: one array type per
+    # argument means one compilation of the kernel (ring_solutions passes float64)
+    share = np.array([np.float32(idx.size / lay.S.shape[0]) for idx in rings],
+                     dtype=np.float64)
     sinz = np.array([np.float32(np.sin(np.radians(z))) for z in zen], dtype=np.float64)
     # writable C float32 either way: numba compiles read-only arrays separately
     T = (np.require(truth.reshape(N, 3), np.float32, ["C", "W"]) if kind == _k.KIND_ORACLE
