@@ -23,7 +23,9 @@ Options (fields of every masked method's options, ``options.sr_*`` on the comman
 line): ``sr_samples``, ``sr_size``, ``sr_damp``, ``sr_correct``, ``sr_bounces``,
 ``sr_source`` (see :class:`psbench.solve.base.Options`); the engine stops once a round
 moves the normals by less than ``correct_tol`` degrees. Limits: the prediction is
-Lambertian (see :mod:`psbench.solve.masks._sr` for what that costs on specular images).
+Lambertian (see :mod:`psbench.solve.masks._sr` for what that costs on specular images);
+where the rounds do not converge they magnify last-bit differences of the weighted
+solves, e.g. between one and two BLAS threads (docs: *Compiled kernels and threads*).
 """
 from __future__ import annotations
 
