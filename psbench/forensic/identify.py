@@ -188,20 +188,21 @@ class _Ref:
         self.shape = shape
         wa = ma.astype(np.float32)
         a = a * wa
-        f = lambda x: sfft.rfft2(x, s=shape, workers=-1)  # noqa: E731
-        self.fa, self.fa2, self.fma = np.conj(f(a)), np.conj(f(a * a)), np.conj(f(wa))
+        self.fa, self.fa2, self.fma = np.conj(sfft.rfft2(np.stack([a, a * a, wa]), s=shape,
+                                                         workers=-1))
         self.n = float(wa.sum())
 
     def map(self, b, mb, min_count):
         """NCC over all cyclic shifts s (a(x) vs b(x + s)); -inf where overlap is small."""
         wb = mb.astype(np.float32)
         b = b * wb
-        f = lambda x: sfft.rfft2(x, s=self.shape, workers=-1)  # noqa: E731
-        fb, fb2, fmb = f(b), f(b * b), f(wb)
-        g = lambda x, y: sfft.irfft2(x * y, s=self.shape, workers=-1)  # noqa: E731
-        n = np.rint(g(self.fma, fmb))
-        sab, sa, sb = g(self.fa, fb), g(self.fa, fmb), g(self.fma, fb)
-        saa, sbb = g(self.fa2, fmb), g(self.fma, fb2)
+        # one batched call per direction: the transforms of a stack are those of its
+        # slices, and the batch spreads over the workers
+        fb, fb2, fmb = sfft.rfft2(np.stack([b, b * b, wb]), s=self.shape, workers=-1)
+        prod = np.stack([self.fma * fmb, self.fa * fb, self.fa * fmb, self.fma * fb,
+                         self.fa2 * fmb, self.fma * fb2])
+        n, sab, sa, sb, saa, sbb = sfft.irfft2(prod, s=self.shape, workers=-1)
+        n = np.rint(n)
         with np.errstate(invalid="ignore", divide="ignore"):
             num = sab - sa * sb / n
             den = (saa - sa * sa / n) * (sbb - sb * sb / n)
