@@ -74,6 +74,7 @@ import scipy.fft as sfft
 
 from .._shared.checks import PsbenchError, as_mask, choice
 from .._shared.deprecation import renamed_args, renamed_names
+from . import _cg_kernel as _cg
 
 __all__ = ["integrate", "gradients", "INTEGRATORS", "NZ_MIN"]
 
@@ -266,19 +267,8 @@ def _poisson_cg(gcol, grow, object_mask, *, tol, maxiter):
     wx = (object_mask[:, 1:] & object_mask[:, :-1]).astype(np.float64)
     wy = (object_mask[1:, :] & object_mask[:-1, :]).astype(np.float64)
 
-    bx = np.empty((H, W - 1))
-    by = np.empty((H - 1, W))
-
     def apply(z, out):
-        np.subtract(z[:, 1:], z[:, :-1], out=bx)
-        np.multiply(bx, wx, out=bx)
-        np.subtract(z[1:, :], z[:-1, :], out=by)
-        np.multiply(by, wy, out=by)
-        np.negative(bx, out=out[:, :-1])
-        out[:, -1] = 0.0
-        out[:, 1:] += bx
-        out[:-1, :] -= by
-        out[1:, :] += by
+        _cg.laplacian(z, wx, wy, out)
         return out
 
     def precond(r):
@@ -301,16 +291,13 @@ def _poisson_cg(gcol, grow, object_mask, *, tol, maxiter):
         if not dAd > 0:
             break
         a = rz / dAd
-        z += a * d
-        Ad *= a
-        r -= Ad
+        _cg.step(z, r, d, Ad, a)   # z += a d; Ad *= a; r -= Ad
         if np.sqrt(_dot(r, r)) <= tol * nb:
             converged = True
             break
         y = precond(r)
         rz_new = float(_dot(r, y))
-        d *= rz_new / rz
-        d += y
+        _cg.direction(d, y, rz_new / rz)   # d = d (rz_new / rz) + y
         rz = rz_new
     return z, it, converged
 
