@@ -15,7 +15,8 @@ __all__ = ["laplacian", "step", "direction"]
 
 @njit(cache=True, nogil=True, parallel=True)
 def laplacian(z, wx, wy, out):
-    """out (H, W): the in-mask edge Laplacian of z, as ``apply`` of the numpy form.
+    """out (H, W): the in-mask edge Laplacian of z (wx (H, W-1), wy (H-1, W): 1 where
+    the edge joins two object pixels); returns ``out``.
 
     With bx = (z[:, 1:] - z[:, :-1]) wx and by = (z[1:] - z[:-1]) wy, each element is
     ((-bx[i, j] or 0) + bx[i, j - 1]) - by[i, j] + by[i - 1, j], the terms present
@@ -34,6 +35,7 @@ def laplacian(z, wx, wy, out):
             if i >= 1:
                 acc += (z[i, j] - z[i - 1, j]) * wy[i - 1, j]
             out[i, j] = acc
+    return out
 
 
 @njit(cache=True, nogil=True, parallel=True)

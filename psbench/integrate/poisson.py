@@ -267,16 +267,12 @@ def _poisson_cg(gcol, grow, object_mask, *, tol, maxiter):
     wx = (object_mask[:, 1:] & object_mask[:, :-1]).astype(np.float64)
     wy = (object_mask[1:, :] & object_mask[:-1, :]).astype(np.float64)
 
-    def apply(z, out):
-        _cg.laplacian(z, wx, wy, out)
-        return out
-
     def precond(r):
         return _dct_solve(r, lam, np.float32).astype(np.float64)
 
     z = _dct_solve(b, lam, np.float32).astype(np.float64)  # warm start: membrane solution
     Ad = np.empty_like(z)
-    r = b - apply(z, Ad)
+    r = b - _cg.laplacian(z, wx, wy, Ad)
     nb = float(np.sqrt(_dot(b, b)))
     if nb == 0.0:
         return z, 0, True
@@ -286,7 +282,7 @@ def _poisson_cg(gcol, grow, object_mask, *, tol, maxiter):
     it, converged = 0, bool(np.sqrt(_dot(r, r)) <= tol * nb)
     while not converged and it < maxiter:
         it += 1
-        apply(d, Ad)
+        _cg.laplacian(d, wx, wy, Ad)
         dAd = float(_dot(d, Ad))
         if not dAd > 0:
             break
