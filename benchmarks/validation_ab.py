@@ -10,6 +10,10 @@ fraction and the load average.
 Usage::
 
     python benchmarks/validation_ab.py --before /tmp/ve-before [--repeat 3] [--data DIR]
+
+The children inherit the environment: ``NUMPY_MADVISE_HUGEPAGE=0`` (or ``=1``) gives
+both trees the same page mapping, which isolates the compute from the huge-page stalls
+that psbench's solve avoids by default (:mod:`psbench._shared.memory`).
 """
 from __future__ import annotations
 

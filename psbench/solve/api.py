@@ -25,6 +25,7 @@ from dataclasses import fields
 
 from .. import registry
 from .._shared.checks import PsbenchError, as_images, as_mask, as_normals
+from .._shared.memory import plain_pages
 from . import _engine
 from ._result import Result, Timer
 from ._specs import check_counts, mask_names, mask_specs, method_names
@@ -109,6 +110,7 @@ def _options(spec, explicit, opts):
     return spec.options.build(values, method=spec.name)
 
 
+@plain_pages
 def solve(images, lights, *, mask="None", method="ps", weighted=False, object_mask=None,
           thresholds=None, max_iter=10, seed=0, weight=None, binary=False, want_height=False,
           truth_normals=None, th_scope="image", **opts) -> Result:
