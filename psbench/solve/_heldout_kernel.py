@@ -17,7 +17,10 @@ pixel is independent (``prange`` over blocks of pixels; no reduction across pixe
 Inside a block the loops run light by light over the block's pixels, with the
 per-pixel choices as selects, so that the pixel loop vectorises; every pixel's sums
 still run over its lights in order, so the results do not depend on the block size
-or the vector width (no fast-math: each value is the plain IEEE expression).
+or the vector width (no fast-math: each value is the plain IEEE expression). An
+observation a fit does not use is summed as an exact zero rather than skipped (a sum
+that starts at +0 is never -0, so adding +-0 leaves it bit for bit as it was), which
+keeps the loops free of conditional stores: they vectorise.
 
 The median of a pixel's |e_i| (its validation error, :func:`abs_median`, and in the
 same pass with the errors) is a bitwise selection, vectorised over the pixels: for
@@ -33,6 +36,8 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from numba.core import types
+from numba.extending import intrinsic
 
 from ._sym3 import HELDOUT_RCOND, inv_sym3
 from .methods.tsfit._kernel import _acos, _expm, _light
@@ -69,17 +74,17 @@ def lambert_errors(I, S, w, out, med):
             sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
             for q in range(B):
                 wi = float(w[i, lo + q])
-                if wi > 0.0:
-                    v = wi * float(I[i, lo + q])
-                    A[0, q] += wi * sx * sx
-                    A[1, q] += wi * sx * sy
-                    A[2, q] += wi * sx * sz
-                    A[3, q] += wi * sy * sy
-                    A[4, q] += wi * sy * sz
-                    A[5, q] += wi * sz * sz
-                    A[6, q] += v * sx
-                    A[7, q] += v * sy
-                    A[8, q] += v * sz
+                wu = wi if wi > 0.0 else 0.0   # unused: adds exact zeros (see above)
+                v = wi * float(I[i, lo + q]) if wi > 0.0 else 0.0
+                A[0, q] += wu * sx * sx
+                A[1, q] += wu * sx * sy
+                A[2, q] += wu * sx * sz
+                A[3, q] += wu * sy * sy
+                A[4, q] += wu * sy * sz
+                A[5, q] += wu * sz * sz
+                A[6, q] += v * sx
+                A[7, q] += v * sy
+                A[8, q] += v * sz
         X = np.empty((9, BLOCK))   # the inverse (6) and the solution (3)
         okv = np.empty(BLOCK, dtype=np.bool_)
         for q in range(B):
@@ -92,7 +97,6 @@ def lambert_errors(I, S, w, out, med):
             X[8, q] = b02 * r0 + b12 * r1 + b22 * r2
             okv[q] = ok
         U = np.empty((k, BLOCK), dtype=np.int32)   # |e_i| bit patterns for the median
-        Uf = U.view(np.float32)
         cnt = np.zeros(BLOCK, dtype=np.int32)
         for i in range(k):
             sx, sy, sz = S[i, 0], S[i, 1], S[i, 2]
@@ -105,7 +109,7 @@ def lambert_errors(I, S, w, out, med):
                 e = np.float32(r / (1.0 - h)) if 1.0 - h > LEVER else np.float32(np.nan)
                 o = e if wi > 0.0 else np.float32(r)
                 out[i, p] = o if okv[q] else np.float32(np.nan)
-                _put(U, Uf, cnt, i, q, e, wi > 0.0 and okv[q])
+                _put(U, cnt, i, q, e, wi > 0.0 and okv[q])
         if want:
             _block_median(U, cnt, B, med, lo)
 
@@ -161,13 +165,13 @@ def ts_errors(tab, I, w, n, rd, rs, m, out, med):
                 JX[i, q] = jx
                 JY[i, q] = jy
                 JZ[i, q] = jz
-                if use:
-                    A[0, q] += wi * jx * jx
-                    A[1, q] += wi * jx * jy
-                    A[2, q] += wi * jx * jz
-                    A[3, q] += wi * jy * jy
-                    A[4, q] += wi * jy * jz
-                    A[5, q] += wi * jz * jz
+                wu = wi if use else 0.0   # unused: adds exact zeros (see above)
+                A[0, q] += wu * jx * jx
+                A[1, q] += wu * jx * jy
+                A[2, q] += wu * jx * jz
+                A[3, q] += wu * jy * jy
+                A[4, q] += wu * jy * jz
+                A[5, q] += wu * jz * jz
         X = np.empty((6, TS_BLOCK))
         okv = np.empty(TS_BLOCK, dtype=np.bool_)
         for q in range(B):
@@ -176,7 +180,6 @@ def ts_errors(tab, I, w, n, rd, rs, m, out, med):
             X[0, q], X[1, q], X[2, q], X[3, q], X[4, q], X[5, q] = b00, b01, b02, b11, b12, b22
             okv[q] = ok
         U = np.empty((k, TS_BLOCK), dtype=np.int32)
-        Uf = U.view(np.float32)
         cnt = np.zeros(TS_BLOCK, dtype=np.int32)
         for i in range(k):
             for q in range(B):
@@ -188,7 +191,7 @@ def ts_errors(tab, I, w, n, rd, rs, m, out, med):
                 e = np.float32(R[i, q] / (1.0 - h)) if 1.0 - h > LEVER else np.float32(np.nan)
                 e = e if okv[q] else np.float32(np.nan)
                 out[i, p] = e if wi > 0.0 else np.float32(R[i, q])
-                _put(U, Uf, cnt, i, q, e, wi > 0.0)
+                _put(U, cnt, i, q, e, wi > 0.0)
         if want:
             _block_median(U, cnt, B, med, lo)
 
@@ -205,23 +208,31 @@ def abs_median(e, used, out):
     for blk in prange(nb):
         lo, hi = blk * BLOCK, min(n, (blk + 1) * BLOCK)
         U = np.empty((k, BLOCK), dtype=np.int32)
-        Uf = U.view(np.float32)
         cnt = np.zeros(BLOCK, dtype=np.int32)
         for i in range(k):
             for q in range(hi - lo):
-                _put(U, Uf, cnt, i, q, e[i, lo + q], used[i, lo + q] != 0)
+                _put(U, cnt, i, q, e[i, lo + q], used[i, lo + q] != 0)
         _block_median(U, cnt, hi - lo, out, lo)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _put(U, Uf, cnt, i, q, e, used):
-    """Enter |e| (float32) as pixel q's i-th candidate of its median when used and
-    finite (else OUT), counting it (``Uf``: ``U`` viewed as float32)."""
+def _put(U, cnt, i, q, e, used):
+    """Enter the bit pattern of |e| (float32) as pixel q's i-th candidate of its median
+    when used and finite (else OUT), counting it (one store: the loop vectorises)."""
     good = used and math.isfinite(e)
-    Uf[i, q] = abs(e)
-    if not good:
-        U[i, q] = OUT
+    U[i, q] = _bits(abs(e)) if good else OUT
     cnt[q] += np.int32(good)
+
+
+@intrinsic
+def _bits(typingctx, x):
+    """The int32 bit pattern of the float32 x (an LLVM bitcast)."""
+    if x != types.float32:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.int32))
+    return types.int32(types.float32), codegen
 
 
 @njit(cache=True, nogil=True, inline="always")

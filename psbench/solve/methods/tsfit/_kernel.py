@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from numba.core import types
+from numba.extending import intrinsic
 
 __all__ = ["lm_fit", "evaluate", "init_rho", "predict", "tables"]
 
@@ -40,7 +42,8 @@ _ACOS = (1.5707963050, -0.2145988016, 0.0889789874, -0.0501743046, 0.0308918810,
 #: resolution of any observation)
 EXP_CUT = 100.0
 _LOG2E, _LN2_HI, _LN2_LO = 1.4426950408889634, 0.6931471803691238, 1.9082149292705877e-10
-_POW2 = 2.0 ** -np.arange(0, 160, dtype=np.float64)  # 2^-j, j <= EXP_CUT log2(e) + 1
+#: the IEEE float64 exponent bias and the position of the exponent field
+_BIAS, _MANT = 1023, 52
 #: rows of the light table (:func:`tables`)
 _DX, _DY, _DZ, _HX, _HY, _HZ, _MU = range(7)
 #: 15 entries of the lower triangle of the 5 x 5 normal matrix, then the 5 of g
@@ -63,17 +66,30 @@ def _acos(x):
     return r if x >= 0.0 else math.pi - r
 
 
+@intrinsic
+def _bits_as_float(typingctx, x):
+    """The float64 whose IEEE bit pattern is the int64 x (an LLVM bitcast: no memory
+    access, so a loop that uses it still vectorises)."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.float64))
+    return types.float64(types.int64), codegen
+
+
 @njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
 def _expm(a):
     """exp(-a) for a >= 0: 2^-j exp(-r), |r| <= ln2 / 2, by a degree-9 Taylor
-    polynomial (relative error < 3e-10); 0 beyond EXP_CUT."""
+    polynomial (relative error < 3e-10); 0 beyond EXP_CUT.
+
+    2^-j is built from its exponent bits (exact: j <= EXP_CUT log2(e) + 1 = 145, a
+    normal float64) rather than read from a table, whose lookup is a gather that
+    keeps the surrounding loops scalar (the held-out kernel ran 2x slower with it)."""
     b = min(a, EXP_CUT)
     j = int(b * _LOG2E + 0.5)
     jf = float(j)
     r = jf * _LN2_HI - b + jf * _LN2_LO  # -(b - j ln2)
     p = 1.0 + r * (1.0 + r * (0.5 + r * (1.0 / 6 + r * (1.0 / 24 + r * (1.0 / 120 + r * (
         1.0 / 720 + r * (1.0 / 5040 + r * (1.0 / 40320 + r * (1.0 / 362880)))))))))
-    return p * _POW2[j] if a < EXP_CUT else 0.0
+    return p * _bits_as_float((_BIAS - j) << _MANT) if a < EXP_CUT else 0.0
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")

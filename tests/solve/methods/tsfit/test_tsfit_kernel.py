@@ -20,6 +20,16 @@ def test_polynomial_arccos_and_exp():
     assert kr._expm(kr.EXP_CUT) == 0.0 and kr._expm(1e9) == 0.0
 
 
+def test_exp_scale_from_exponent_bits_is_the_exact_power_of_two():
+    """2^-j built from its exponent bits equals 2.0 ** -j bit for bit at every j the
+    exp reaches (0 .. EXP_CUT log2 e + 1), so the kernels' values did not change."""
+    two = numba.njit(lambda j: kr._bits_as_float((kr._BIAS - j) << kr._MANT))
+    j_max = int(kr.EXP_CUT * kr._LOG2E + 0.5)
+    j = np.arange(0, j_max + 1)
+    got = np.array([two(int(v)) for v in j])
+    assert np.array_equal(got.view(np.int64), (2.0 ** -j.astype(np.float64)).view(np.int64))
+
+
 def test_predict_matches_the_renderer():
     surf = ps.make_surface("sombrero2", size=32)
     lay = ps.layout("30x8+60x8", power=np.linspace(0.6, 1.4, 16))
