@@ -74,6 +74,7 @@ import scipy.fft as sfft
 
 from .._shared.checks import PsbenchError, as_mask, choice
 from .._shared.deprecation import renamed_args, renamed_names
+from .._shared.memory import managed_memory
 from . import _cg_kernel as _cg
 
 __all__ = ["integrate", "gradients", "INTEGRATORS", "NZ_MIN"]
@@ -392,6 +393,7 @@ def _poisson_sparse(gcol, grow, object_mask):
     return z
 
 
+@managed_memory
 @renamed_args(positional=("object_mask",),
               renamed={"mask": "object_mask", "method": "integrator"})
 def integrate(normals, *, object_mask=None, integrator="poisson", datum="min", nz_min=NZ_MIN,

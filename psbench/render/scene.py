@@ -27,6 +27,7 @@ import numpy as np
 
 from .._shared.checks import PsbenchError, choice
 from .._shared.deprecation import warn_renamed
+from .._shared.memory import managed_memory
 from ..lights import Layout, layout
 from ._shading import (HIGHLIGHT_ANGLE, HIGHLIGHT_FRACTION, HIGHLIGHT_RULES, Shader, _nonneg,
                        _positive, highlight_plane, highlight_truth)
@@ -176,6 +177,7 @@ class Scene:
                 f"shape=({H}, {W}), noise={self.noise:g}, seed={self.seed})")
 
 
+@managed_memory
 def render(surface, lights, *, model="ts", shadows=True, noise=0.0, seed=0,
            rho_d=1.0, rho_s=1.0, m=2.0, quantize=None, highlight=None, highlight_angle=None,
            highlight_fraction=None, light_positions=None, falloff=False, perspective=None,

@@ -25,7 +25,7 @@ from dataclasses import fields
 
 from .. import registry
 from .._shared.checks import PsbenchError, as_images, as_mask, as_normals
-from .._shared.memory import plain_pages
+from .._shared.memory import managed_memory
 from . import _engine
 from ._result import Result, Timer
 from ._specs import check_counts, mask_names, mask_specs, method_names
@@ -110,7 +110,7 @@ def _options(spec, explicit, opts):
     return spec.options.build(values, method=spec.name)
 
 
-@plain_pages
+@managed_memory
 def solve(images, lights, *, mask="None", method="ps", weighted=False, object_mask=None,
           thresholds=None, max_iter=10, seed=0, weight=None, binary=False, want_height=False,
           truth_normals=None, th_scope="image", **opts) -> Result:
