@@ -1,5 +1,6 @@
 """What numpy's huge-page advice costs a solve: psbench's default (advice off while it
 solves, :mod:`psbench._shared.memory`) against numpy's (``NUMPY_MADVISE_HUGEPAGE=1``).
+The module's other policy (glibc keeping freed memory) holds in both.
 
 Each repeat is a fresh process per setting (alternating, so both see the same load):
 it loads a DiLiGenT object, compiles on a 24 x 24 crop, then solves the whole object
