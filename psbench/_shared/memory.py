@@ -38,12 +38,12 @@ float64 array is 33.5 MiB: the integrator's conjugate-gradient steps and the mas
 (k, H, W) stacks allocate such arrays again and again. Measured on a 2-core AVX2 VM:
 filling a fresh 33.5 MiB array took 21 ms against 2.5 ms for one already mapped, and
 the 2048^2 forensic pipeline (``benchmarks/forensic_pipeline.py --compare``, 3
-alternating runs per tree) spent 5.9 s against 0.6 s in its final integration. On glibc (Linux), during the call malloc serves every
-block from its heap (``mallopt(M_MMAP_MAX, 0)``) and keeps what is freed
+alternating runs per tree) spent 5.9 s against 0.6 s in its final integration. On
+glibc (Linux), during the call malloc serves every block from its heap (``mallopt(M_MMAP_MAX, 0)``) and keeps what is freed
 (``M_TRIM_THRESHOLD`` 2 GiB); at the end it leaves the thresholds where glibc's own
 dynamic rule leaves them once a 32 MiB block has been freed (mmap threshold 32 MiB, trim
-threshold 64 MiB). Peak memory is that of the call's live arrays either way (2048^2
-pipeline: 2.05 GiB against 1.92). What the call freed stays with the process for the
+threshold 64 MiB). Peak memory rises a little, as the heap's free blocks fragment
+(2048^2 pipeline: 2.05 GiB against 1.92). What the call freed stays with the process for the
 next call instead of being handed back at once: glibc returns the heap's top beyond
 64 MiB at a later free, and ``malloc_trim(0)`` (``ctypes.CDLL("libc.so.6")``) returns the
 rest. The whole pipeline took 26.2 s without this policy and 15.4 s with it (medians,
