@@ -15,7 +15,8 @@ from numba import njit, prange
 
 from ._kernel import _DX, _DY, _DZ, _MU, BLOCK, FASTMATH, _light, _model
 
-__all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample"]
+__all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample",
+           "row_middles"]
 
 #: the 8-neighbourhood as (row, column) offsets
 _DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
@@ -171,3 +172,84 @@ def choice_sample(tab, bt, rs, m, bl, I, V, all_valid, pix, abs_t, abs_l):
                 ok = all_valid or V[i, p]
                 abs_t[i, j] = abs(r) if ok else math.nan
                 abs_l[i, j] = abs(q) if ok else math.nan
+
+
+#: the top bits of a non-negative float32's pattern that :func:`row_middles` counts
+#: first (8 exponent bits and the top 3 of the mantissa: 2048 bins)
+_SHIFT = 20
+_ABS = np.int32(0x7FFFFFFF)
+_INF = np.int32(0x7F800000)
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def row_middles(u, keep, out):
+    """The two middle order statistics of each row's kept values, for its median.
+
+    u (k, P) int32: the bit patterns of non-negative float32 values (``x.view(int32)``;
+    a -0 counts as 0); keep (k, P) bool. out (k, 4) int32 per row: the pattern of the
+    (c // 2)-th smallest kept value (0-based), of the (c // 2 - 1)-th (the same for
+    c = 1), the count c, and 1 if a kept value is NaN.
+
+    For non-negative float32 the order of the patterns as integers is the order of
+    the values, so a count of the top 11 bits finds the bin holding the middle, a
+    count of the next 10 bits of that bin's values the sub-bin, and only the
+    sub-bin's few values are sorted: the values selected are exactly those
+    ``np.median`` averages (its partition of a gathered copy of each row was most of
+    tsfit's noise-scale estimate). The count is branch-free (a value not kept counts
+    in a spare bin) into 4 interleaved histograms, so that neighbouring values in one
+    bin do not wait for each other."""
+    k, P = u.shape
+    nbin = (1 << (31 - _SHIFT)) + 1
+    for i in prange(k):
+        hist = np.zeros((4, nbin), dtype=np.int64)
+        nan = np.int32(0)
+        for p in range(P):
+            v = u[i, p] & _ABS
+            kp = keep[i, p]
+            hist[p & 3, (v >> _SHIFT) if kp else nbin - 1] += 1
+            nan |= np.int32(kp & (v > _INF))
+        tot = hist.sum(0)
+        c = P - tot[nbin - 1]
+        out[i, 2], out[i, 3] = c, nan
+        if c == 0 or nan:
+            out[i, 0] = out[i, 1] = 0
+            continue
+        h = c // 2
+        b, r1 = _rank_bin(tot, h)
+        buf = np.empty(tot[b], dtype=np.int32)
+        j = 0
+        for p in range(P):
+            v = u[i, p] & _ABS
+            if (v >> _SHIFT) == b and keep[i, p]:    # rarely true: predicted
+                buf[j] = v
+                j += 1
+        low = (buf >> (_SHIFT - 10)) & 1023
+        sub = np.zeros(1024, dtype=np.int64)
+        for q in range(j):
+            sub[low[q]] += 1
+        b2, r = _rank_bin(sub, r1)
+        fin = buf[low == b2]
+        fin.sort()
+        out[i, 0] = fin[r]
+        if r >= 1 or h == 0:
+            out[i, 1] = fin[r - 1] if r >= 1 else fin[r]
+        elif r1 >= 1:    # the largest of the bin's lower sub-bins
+            out[i, 1] = buf[low < b2].max()
+        else:   # the middle is its bin's smallest: the one below is in a lower bin
+            lower = np.int32(-1)
+            for p in range(P):
+                v = u[i, p] & _ABS
+                if keep[i, p] and (v >> _SHIFT) < b and v > lower:
+                    lower = v
+            out[i, 1] = lower
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rank_bin(hist, h):
+    """The bin of a histogram holding the h-th smallest (0-based) and h's rank in it."""
+    below = 0
+    b = 0
+    while below + hist[b] <= h:
+        below += hist[b]
+        b += 1
+    return b, h - below

@@ -116,3 +116,52 @@ def test_independent_of_thread_count():
         numba.set_num_threads(before)
     for a, b in zip(out[0], out[-1]):
         np.testing.assert_array_equal(a, b)
+
+
+def _median_loop(I, pred, w, lambert):
+    """noise_sigma's numpy form: np.median of each image's kept |residuals|."""
+    r = pred - I
+    inl = w >= 0.5
+    if lambert:
+        inl &= r >= 0
+    else:
+        np.abs(r, out=r)
+    sig = np.full(r.shape[0], np.nan)
+    for i in range(r.shape[0]):
+        ri = r[i][inl[i]]
+        if ri.size:
+            sig[i] = 1.4826 * np.median(ri)
+    ok = np.isfinite(sig)
+    fill = float(np.median(sig[ok])) if ok.any() else 0.0
+    return np.where(ok, sig, fill).astype(np.float32)
+
+
+@pytest.mark.parametrize("lambert", [True, False])
+def test_noise_sigma_is_np_median_bit_for_bit(lambert):
+    """The selection kernel picks exactly the values np.median averages: odd and even
+    counts, ties (quantised data), one kept value, rows with none, a NaN kept, values
+    spread over many octaves and values all in one bin."""
+    from psbench.solve.methods.tsfit._start import noise_sigma
+
+    rng = np.random.default_rng(3)
+    for t in range(120):
+        k, p = int(rng.integers(1, 12)), int(rng.integers(1, 2500))
+        I = rng.random((k, p)).astype(np.float32)
+        if t % 3 == 0:
+            I = (np.round(I * 8) / 8).astype(np.float32)           # many ties
+        scale = 10.0 ** rng.uniform(-6, 1, (k, p)) if t % 4 == 0 else 0.05
+        pred = (I + rng.normal(size=I.shape) * scale).astype(np.float32)
+        if t % 5 == 0:
+            pred = 1.0 + rng.random(I.shape).astype(np.float32) * 1e-6   # one bin
+            pred = pred.astype(np.float32)
+        w = rng.random((k, p)) < rng.uniform(0.0005, 1.0)
+        w[0, :] = w[0, :] if t % 7 else False                     # a row with none
+        if t % 6 == 0:
+            w[-1, :] = False
+            w[-1, int(rng.integers(p))] = True                     # one kept value
+        if t % 11 == 0:
+            I[0, 0], w[0, 0] = np.nan, True                        # a NaN kept
+        got = noise_sigma(I, pred, w, lambert=lambert)
+        want = _median_loop(I, pred, w, lambert)
+        np.testing.assert_array_equal(got.view(np.int32), want.view(np.int32),
+                                      err_msg=f"case {t}")
