@@ -114,12 +114,21 @@ def ts_heldout(I, table, w, n, rd, rs, m, *, median=False):
     return (out, med) if median else out
 
 
-def validation_map(e, used, I, *, median=None):
+def intensity_floor(I):
+    """The floor of the pixels' intensity scales in :func:`validation_map`: 1e-6 times
+    the mean of the mean observations of the pixels of ``I`` (k, n)."""
+    s = I.mean(axis=0, dtype=np.float64)
+    return 1e-6 * max(float(s.mean()), 1e-30)
+
+
+def validation_map(e, used, I, *, median=None, floor=None):
     """Per-pixel validation error (n,) float32: median |e| over the used observations
     divided by the pixel's mean observation (see the module docstring).
 
     ``median`` (n,) float32: that median when the held-out pass computed it
-    (``lambert_heldout(..., median=True)``); ``e`` is then not read."""
+    (``lambert_heldout(..., median=True)``); ``e`` is then not read. ``floor``
+    (float or (n,)): the intensity floor when ``I`` holds only some of the pixels it
+    is to be taken over (:func:`intensity_floor` of those); default: that of ``I``."""
     used = np.ascontiguousarray(np.asarray(used) > 0)
     cnt = used.sum(axis=0)
     if median is not None:
@@ -128,7 +137,8 @@ def validation_map(e, used, I, *, median=None):
         med = np.empty(used.shape[1], dtype=np.float32)
         _hk.abs_median(np.ascontiguousarray(e, dtype=np.float32), used.view(np.uint8), med)
     s = I.mean(axis=0, dtype=np.float64)
-    floor = 1e-6 * max(float(s.mean()), 1e-30)
+    if floor is None:
+        floor = 1e-6 * max(float(s.mean()), 1e-30)
     out = (med / np.maximum(s, floor)).astype(np.float32)
     out[cnt < 4] = np.nan
     return out

@@ -195,15 +195,16 @@ def robust(problem, options: RobustOptions):
             fit.fields["fallback"] = np.zeros((px.H, px.W), dtype=bool)
             info["fallback_fraction"] = 0.0
         return fit
-    from ..tsfit.method import TsfitOptions, tsfit
+    from ..tsfit.method import TsfitOptions, tsfit_lazy_heldout
 
     with warnings.catch_warnings(record=True) as caught, \
             trim_mod.reuse(problem, trim_mod.result(px, b_l, keep)):
         # the Torrance-Sparrow step starts from ``trim``: the fit above, not a second one
         warnings.simplefilter("always", RuntimeWarning)
         # (no fallback inside: robust falls back to the trimmed fit itself, below)
-        ts = tsfit(problem, TsfitOptions(**TS_SETTINGS, lm_max_iter=options.n_iter,
-                                         lm_tol=options.tol, fallback=False))
+        # (its held-out errors are computed below, only where its fit is chosen)
+        ts = tsfit_lazy_heldout(problem, TsfitOptions(
+            **TS_SETTINGS, lm_max_iter=options.n_iter, lm_tol=options.tol, fallback=False))
     sel = (slice(None),) if px.full else (px.idx,)
     b_t = np.asarray(ts.b, dtype=np.float32).reshape(-1, 3)[sel]
     w_t = np.asarray(ts.weights, dtype=np.float32).reshape(px.k, -1)
@@ -233,21 +234,27 @@ def robust(problem, options: RobustOptions):
     loss_l = np.empty(px.n)
     _kx.choice_losses(*args, float((options.c * sigma) ** 2), loss_t, loss_l)
     use_t = loss_t <= loss_l
-    # held-out errors of the trimmed fit (its ve, and the fallback's reference) and of
-    # the Torrance-Sparrow fit (computed by tsfit for its ve)
+    # held-out errors of the trimmed fit (its ve, and the fallback's reference) at
+    # every pixel, and of the Torrance-Sparrow fit where it is chosen (the only
+    # pixels where its errors and ve are used)
     from ...validation import lambert_heldout
     e_l, med_l = lambert_heldout(px.Ik, px.S, keep, median=True)
-    e_t = ts.heldout[0] if ts.heldout is not None else None
+    chosen = np.flatnonzero(use_t)
+    e_t, _, ve_t = ts.heldout(chosen)
     fell = None
-    if options.fallback and e_t is not None:
-        mean, se, cnt = _fb.compare(e_t, e_l, keep | (w_t > 0), sigma, c=options.c,
-                                    scale=px.scale)
+    if options.fallback:
+        mean, se, cnt = _fb.compare(e_t, e_l[:, chosen],
+                                    keep[:, chosen] | (w_t[:, chosen] > 0), sigma,
+                                    c=options.c, scale=px.scale)
         t = _fb.margin(mean, se, cnt)
         ok = t > _fb.Z
-        fell = use_t & ~ok
-        info["fallback_margin"] = px.image(np.where(use_t, t, np.nan).astype(np.float32),
-                                           fill=np.nan)
-        use_t = use_t & ok
+        fell = np.zeros(px.n, dtype=bool)
+        fell[chosen] = ~ok
+        margin = np.full(px.n, np.nan, dtype=np.float32)
+        margin[chosen] = t
+        info["fallback_margin"] = px.image(margin, fill=np.nan)
+        use_t = use_t & ~fell
+        chosen, e_t, ve_t = chosen[ok], e_t[:, ok], ve_t[ok]
     b = np.where(use_t[:, None], b_t, b_l)
     weights = np.where(use_t[None, :], w_t, keep.astype(np.float32))   # (k, n)
     conv_t = np.asarray(ts.converged, dtype=bool)
@@ -266,29 +273,30 @@ def robust(problem, options: RobustOptions):
             warnings.warn(str(w.message), w.category, stacklevel=2)
     fit = px.fit("robust", b, weights=weights, valid=weights > 0, iterations=its,
                  converged=conv, n_iter=options.n_iter, info=info, kn=True)
-    fit.fields["ve"] = ve = _validation(px, keep, use_t, ts.fields.get("ve"), med_l)
+    fit.fields["ve"] = ve = _validation(px, keep, chosen, ve_t, med_l)
+
+    def heldout():   # for a method started from robust (tsfit) and its fallback
+        # (a function: assembled only when a method started from robust asks for it)
+        e = e_l.copy()
+        e[:, chosen] = e_t
+        return e, weights > 0, ve.map.reshape(-1) if px.full else ve.map.reshape(-1)[px.idx]
     if fell is not None:
         fit.fields["fallback"] = px.image(fell, fill=False)
-    if e_t is not None:   # for a method started from robust (tsfit) and its fallback
-        # (a function: assembled only when a method started from robust asks for it)
-        fit.heldout = lambda: (np.where(use_t[None, :], e_t, e_l), weights > 0,
-                               ve.map.reshape(-1) if px.full else ve.map.reshape(-1)[px.idx])
+    fit.heldout = heldout
     return fit
 
 
-def _validation(px, keep, use_t, ve_t, med_l):
+def _validation(px, keep, chosen, ve_t, med_l):
     """The validation error of the chosen fit per pixel: the Torrance-Sparrow fit's
-    where it was chosen, the trimmed Lambertian fit's (the median of its held-out
-    errors over its kept observations, ``med_l``) elsewhere
-    (:mod:`psbench.solve.validation`)."""
+    (``ve_t``) at the pixels ``chosen`` where it was chosen, the trimmed Lambertian
+    fit's (the median of its held-out errors over its kept observations, ``med_l``)
+    elsewhere (:mod:`psbench.solve.validation`)."""
     from ...validation import summarise, validation_map
     I = px.Ik
     # over every pixel: validation_map's intensity floor is a fraction of the mean over
     # the pixels it is given, so a subset would change it
     vals = validation_map(None, keep, I, median=med_l)
-    if ve_t is not None:
-        t = ve_t.map.reshape(-1) if px.full else ve_t.map.reshape(-1)[px.idx]
-        vals = np.where(use_t, t, vals)
+    vals[chosen] = ve_t
     idx = np.arange(px.n) if px.full else px.idx
     return summarise(vals, idx, (px.H, px.W))
 

@@ -286,6 +286,19 @@ def tsfit(problem, options=None) -> Fit:
         return _tsfit(problem, opt, start_name)
 
 
+def tsfit_lazy_heldout(problem, options):
+    """:func:`tsfit` without the fallback, for a caller that needs the fit's held-out
+    errors at some pixels only (``robust``: where it chooses the fit). ``fields["ve"]``
+    is None and ``heldout`` a function of pixel indices ``sel`` (into the object
+    pixels) returning the held-out errors (k, len(sel)) float32, the observations used
+    (k, len(sel)) bool and the validation error (len(sel),) float32: bit for bit
+    those :func:`tsfit` computes at those pixels."""
+    if options.fallback:
+        raise PsbenchError("tsfit_lazy_heldout: options.fallback must be False")
+    with _single_thread_blas():
+        return _tsfit(problem, options, resolve_start(options.start), lazy=True)
+
+
 #: run a fit with one BLAS thread (see :func:`_single_thread_blas`); benchmarks
 #: switch it off to measure the difference
 PIN_BLAS = True
@@ -304,7 +317,7 @@ def _single_thread_blas():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def _tsfit(problem, opt, start_name):
+def _tsfit(problem, opt, start_name, lazy=False):
     images = problem.images
     k, H, W = images.shape
     clock = _Clock()
@@ -395,7 +408,11 @@ def _tsfit(problem, opt, start_name):
         n[:, keep], rd[keep], rs[keep] = n0[:, keep], rd0[keep], 0.0
         m[keep] = m_shared
         conv[bad] = False
-    e_fit, vals = _heldout(L, I, w, n, rd, rs, m)
+    if lazy:    # (no fallback: nothing below needs them)
+        heldout = _lazy_heldout(L, I, w, n, rd, rs, m)
+        e_fit = vals = None
+    else:
+        e_fit, vals = _heldout(L, I, w, n, rd, rs, m)
     fell = None
     if opt.fallback:
         if sigma is None:   # weights="mask": the noise scale of the final fit
@@ -423,9 +440,11 @@ def _tsfit(problem, opt, start_name):
     if fell is not None:   # the start's solution, bit for bit
         b[idx[fell]] = b0[:, fell].T
     from ...validation import summarise
-    ve = summarise(vals, idx, (H, W))
+    ve = None if lazy else summarise(vals, idx, (H, W))
     clock.stage("validate")
-    del I, valid  # the gathered copies: not needed for the output
+    del valid
+    if not lazy:
+        del I   # the gathered copy: not needed for the output
     if full:
         wfull = w.astype(np.float32)
     else:
@@ -445,7 +464,7 @@ def _tsfit(problem, opt, start_name):
                weights=wfull.reshape(k, H, W), iterations=plane(iters, 0, np.int32),
                converged=plane(conv, True, bool), info=info,
                fields={"ve": ve, "fallback": None if fell is None else plane(fell, False, bool)},
-               heldout=(e_fit, w, vals))
+               heldout=heldout if lazy else (e_fit, w, vals))
 
 
 def _heldout(L, I, w, n, rd, rs, m):
@@ -462,6 +481,28 @@ def _heldout(L, I, w, n, rd, rs, m):
                                   median=True)
         vals[s] = validation_map(None, w[:, s], I[:, s], median=med)
     return e, vals
+
+
+def _lazy_heldout(L, I, w, n, rd, rs, m):
+    """:func:`_heldout` at chosen pixels, as a function of their indices (see
+    :func:`tsfit_lazy_heldout`). Each pixel's errors are its own; the validation
+    error's intensity floor is that of the pixel's block of :func:`_heldout` (a mean
+    over the block), so it is computed from every pixel, as there."""
+    from ...validation import intensity_floor, ts_heldout, validation_map
+
+    def at(sel):
+        sel = np.asarray(sel, dtype=np.intp)
+        Is, ws = take(I, sel), take(w, sel)
+        e, med = ts_heldout(Is, L.table, ws, take(n, sel), rd[sel], rs[sel], m[sel],
+                            median=True)
+        floor = np.empty(sel.size)
+        for lo in range(0, I.shape[1], 1 << 16):
+            s = slice(lo, lo + (1 << 16))
+            sl = (sel >= lo) & (sel < lo + (1 << 16))
+            if sl.any():
+                floor[sl] = intensity_floor(I[:, s])
+        return e, ws, validation_map(None, ws, Is, median=med, floor=floor)
+    return at
 
 
 def _fall_back(I, w, e_fit, vals, start, sigma, kept, scale):

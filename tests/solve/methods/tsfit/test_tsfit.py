@@ -358,3 +358,34 @@ def test_noise_scale_ignores_the_highlights_a_start_keeps():
     scene = ps.render(surf, lay, model="ts", noise=0.0, seed=0, shadows=True)
     fit = tsfit(_problem(scene, lay), TsfitOptions())
     assert float(_errors(fit.b, surf.normals, surf.object_mask).mean()) < 0.1
+
+
+def test_lazy_heldout_equals_tsfit_heldout_at_any_pixels():
+    """robust's path: the fit's held-out errors, used observations and ve at chosen
+    pixels are tsfit's own there, bit for bit, also where the object spans several
+    of the validation's 65536-pixel blocks (each block has its own intensity floor)."""
+    from psbench.solve.methods.tsfit.method import tsfit_lazy_heldout
+
+    surf = ps.make_surface("sombrero2", size=288)       # 82944 pixels: two blocks
+    lay = ps.layout("30x4+60x4")
+    scene = ps.render(surf, lay, model="ts", noise=0.02, seed=1)
+    # a band of rows 1e-7 as bright: still fitted, and below the intensity floor
+    images = np.array(scene.images) * 100
+    images[:, 100:140] *= 1e-7
+    pr = Problem(images=images, lights=lay, valid=np.ones(images.shape, bool),
+                 object_mask=surf.object_mask)
+    opt = TsfitOptions(fallback=False)
+    full = tsfit(pr, opt)
+    lazy = tsfit_lazy_heldout(pr, opt)
+    np.testing.assert_array_equal(lazy.b, full.b)
+    assert lazy.fields["ve"] is None
+    e, used, vals = full.heldout
+    sel = np.concatenate([np.arange(100 * 288, 100 * 288 + 2000),     # the band
+                          np.arange(70000, 71000)])                    # the second block
+    assert np.isfinite(vals[sel[:2000]]).mean() > 0.5
+    e_s, used_s, vals_s = lazy.heldout(sel)
+    np.testing.assert_array_equal(e_s.view(np.int32), e[:, sel].view(np.int32))
+    np.testing.assert_array_equal(used_s, used[:, sel])
+    np.testing.assert_array_equal(vals_s.view(np.int32), vals[sel].view(np.int32))
+    with pytest.raises(PsbenchError, match="fallback must be False"):
+        tsfit_lazy_heldout(pr, TsfitOptions(fallback=True))
