@@ -240,11 +240,12 @@ def robust(problem, options: RobustOptions):
     from ...validation import lambert_heldout
     e_l, med_l = lambert_heldout(px.Ik, px.S, keep, median=True)
     chosen = np.flatnonzero(use_t)
-    e_t, _, ve_t = ts.heldout(chosen)
+    e_t, used_t, ve_t = ts.heldout(chosen)     # used_t: w_t > 0 there
     fell = None
     if options.fallback:
-        mean, se, cnt = _fb.compare(e_t, e_l[:, chosen],
-                                    keep[:, chosen] | (w_t[:, chosen] > 0), sigma,
+        # (np.take: several times faster than fancy indexing on the pixel axis)
+        mean, se, cnt = _fb.compare(e_t, np.take(e_l, chosen, axis=1),
+                                    np.take(keep, chosen, axis=1) | used_t, sigma,
                                     c=options.c, scale=px.scale)
         t = _fb.margin(mean, se, cnt)
         ok = t > _fb.Z
@@ -254,7 +255,8 @@ def robust(problem, options: RobustOptions):
         margin[chosen] = t
         info["fallback_margin"] = px.image(margin, fill=np.nan)
         use_t = use_t & ~fell
-        chosen, e_t, ve_t = chosen[ok], e_t[:, ok], ve_t[ok]
+        kept = np.flatnonzero(ok)
+        chosen, e_t, ve_t = chosen[kept], np.take(e_t, kept, axis=1), ve_t[kept]
     b = np.where(use_t[:, None], b_t, b_l)
     weights = np.where(use_t[None, :], w_t, keep.astype(np.float32))   # (k, n)
     conv_t = np.asarray(ts.converged, dtype=bool)
