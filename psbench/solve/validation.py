@@ -117,7 +117,10 @@ def ts_heldout(I, table, w, n, rd, rs, m, *, median=False):
 def intensity_floor(I):
     """The floor of the pixels' intensity scales in :func:`validation_map`: 1e-6 times
     the mean of the mean observations of the pixels of ``I`` (k, n)."""
-    s = I.mean(axis=0, dtype=np.float64)
+    return _floor(I.mean(axis=0, dtype=np.float64))
+
+
+def _floor(s):
     return 1e-6 * max(float(s.mean()), 1e-30)
 
 
@@ -138,7 +141,7 @@ def validation_map(e, used, I, *, median=None, floor=None):
         _hk.abs_median(np.ascontiguousarray(e, dtype=np.float32), used.view(np.uint8), med)
     s = I.mean(axis=0, dtype=np.float64)
     if floor is None:
-        floor = 1e-6 * max(float(s.mean()), 1e-30)
+        floor = _floor(s)
     out = (med / np.maximum(s, floor)).astype(np.float32)
     out[cnt < 4] = np.nan
     return out
