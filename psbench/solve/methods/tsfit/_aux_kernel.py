@@ -15,7 +15,7 @@ from numba import njit, prange
 
 from ._kernel import _DX, _DY, _DZ, _MU, BLOCK, FASTMATH, _light, _model
 
-__all__ = ["dark_weights", "neighbour_mean", "near", "choice_losses", "choice_sample",
+__all__ = ["dark_weights", "dark_weights_pred", "neighbour_mean", "near", "choice_losses", "choice_sample",
            "row_middles"]
 
 #: the 8-neighbourhood as (row, column) offsets
@@ -49,10 +49,28 @@ def dark_weights(tab, n, rd, rs, m, lobe, I, valid, margin, ratio, out):
                     pr[p - lo] = mu * float(rd[p]) * c if c > 0.0 else 0.0
             mg = margin[i]
             for p in range(lo, hi):
-                v = pr[p - lo]
-                x = I[i, p]
-                dark = (x < ratio * v) & (x < v - mg) & (v > mg)
-                out[i, p] = valid[i, p] & ~dark
+                out[i, p] = _not_dark(I[i, p], pr[p - lo], mg, ratio, valid[i, p])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _not_dark(x, v, mg, ratio, valid):
+    """An observation x (float32) is kept when valid and not dark under the prediction
+    v (float32): dark when v > mg and x < ratio v and x < v - mg (float32)."""
+    return valid & ~((x < ratio * v) & (x < v - mg) & (v > mg))
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def dark_weights_pred(pred, I, valid, margin, ratio, out):
+    """:func:`dark_weights` from the model's prediction pred (k, P) float32 when the
+    caller already has it (the same test, the same float32 values)."""
+    k, P = I.shape
+    nb = (P + BLOCK - 1) // BLOCK
+    for blk in prange(nb):
+        lo, hi = blk * BLOCK, min(P, (blk + 1) * BLOCK)
+        for i in range(k):
+            mg = margin[i]
+            for p in range(lo, hi):
+                out[i, p] = _not_dark(I[i, p], pred[i, p], mg, ratio, valid[i, p])
 
 
 @njit(cache=True, parallel=True, nogil=True)

@@ -196,7 +196,7 @@ def noise_sigma(I, pred, w, *, lambert=False):
     return np.where(ok, sig, fill).astype(np.float32)
 
 
-def put_back(I, valid, model, sigma, dark_ratio, dark_sigmas):
+def put_back(I, valid, model, sigma, dark_ratio, dark_sigmas, *, pred=None):
     """Weights with the highlights put back, on gathered pixels.
 
     A usable observation is dark (a shadow the model cannot explain) when the
@@ -220,6 +220,10 @@ def put_back(I, valid, model, sigma, dark_ratio, dark_sigmas):
         in self shadow); ``rs=None``: the Lambert prediction rho_d (s_i . n).
     sigma : (k,) float32
         Per-image noise scale (:func:`noise_sigma`).
+    pred : (k, P) float32, optional
+        The Lambert + Torrance-Sparrow prediction of ``model`` when the caller has
+        it (:func:`_lm.predict`: the same float32 values), so that it is not
+        evaluated twice.
 
     Returns
     -------
@@ -233,6 +237,10 @@ def put_back(I, valid, model, sigma, dark_ratio, dark_sigmas):
     m = f32(m) if lobe else np.zeros(1, np.float32)
     margin = f32(np.float32(dark_sigmas) * np.asarray(sigma, dtype=np.float32))
     w = np.empty(I.shape, dtype=bool)
+    if pred is not None:
+        _kx.dark_weights_pred(f32(pred), f32(I), np.ascontiguousarray(valid, dtype=bool),
+                              margin, np.float32(dark_ratio), w)
+        return w
     _kx.dark_weights(L.table, f32(n), f32(rd), rs, m, lobe, f32(I),
                      np.ascontiguousarray(valid, dtype=bool), margin,
                      np.float32(dark_ratio), w)

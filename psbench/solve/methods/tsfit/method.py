@@ -382,11 +382,14 @@ def _tsfit(problem, opt, start_name, lazy=False):
     _repair(L, I, w, n, rd, rs, m, rs_max, f, cols, opt, iters, conv, cost, m_shared,
             rs_shared)
     for _ in range(opt.refine if opt.weights == "start" else 0):
-        sub = slice(0, None, max(1, P // SIGMA_PIXELS))
-        sigma = noise_sigma(I[:, sub], _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub]),
-                            w[:, sub])
+        step = max(1, P // SIGMA_PIXELS)
+        sub = slice(0, None, step)
+        pred = _lm.predict(L, n[:, sub], rd[sub], rs[sub], m[sub])
+        sigma = noise_sigma(I[:, sub], pred, w[:, sub])
+        # (the prediction of every pixel when the sample is all of them)
         w_new = put_back(I, valid, (L, n, rd, rs, m), sigma, opt.dark_ratio,
-                         opt.dark_sigmas)
+                         opt.dark_sigmas, pred=pred if step == 1 else None)
+        del pred
         changed = fitted & (w_new != w).any(axis=0)
         w = w_new
         ok = changed & (count(w) >= MIN_OBS)
