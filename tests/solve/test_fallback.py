@@ -147,3 +147,38 @@ def test_outputs_write_the_fallback_map(bounce, tmp_path):
                           per_image=False)
     assert "fallback.png" in files and "fallback.npz" in files
     np.testing.assert_array_equal(np.load(tmp_path / "fallback.npz")["fallback"], r.fallback)
+
+
+def test_paired_kernel_is_the_per_pixel_sums():
+    """The compiled comparison equals the plain per-pixel sums over the lights in order
+    (a Python loop doing the same float64 operations), over more than one block, with
+    undefined errors and pixels of 0 and 1 evaluated observations."""
+    from psbench.solve import _fallback_kernel as fk
+
+    rng = np.random.default_rng(4)
+    k, n = 7, fk.BLOCK + 900
+    em = rng.normal(size=(k, n)).astype(np.float32)
+    es = rng.normal(size=(k, n)).astype(np.float32)
+    em[rng.random((k, n)) < 0.05] = np.nan
+    E = (rng.random((k, n)) < 0.6).astype(np.uint8)
+    E[:, :3] = 0
+    E[0, 3:6] = 1
+    E[1:, 3:6] = 0
+    inv, c2 = rng.uniform(0.5, 3.0, k), 6.25
+    mean, se, cnt = np.empty(n), np.empty(n), np.empty(n, np.int32)
+    fk.paired(em, es, E, inv, c2, mean, se, cnt)
+    for p in range(n):
+        s = ss = 0.0
+        c = 0
+        for i in range(k):
+            if E[i, p]:
+                a, b = float(em[i, p]) * inv[i], float(es[i, p]) * inv[i]
+                d = (min(a * a, c2) if a == a else c2) - (min(b * b, c2) if b == b else c2)
+                s, ss, c = s + d, ss + d * d, c + 1
+        assert cnt[p] == c
+        if c == 0:
+            assert mean[p] == 0.0 and se[p] == np.inf
+            continue
+        m = s / c
+        assert mean[p] == m
+        assert se[p] == (np.inf if c < 2 else np.sqrt(max(ss - c * m * m, 0.0) / (c - 1) / c))
