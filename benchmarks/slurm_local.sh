@@ -60,6 +60,18 @@ all_up() {
   [ -f "$PIDS" ] && [ "$(our_pids | wc -l)" -eq 3 ]
 }
 
+# names of the daemons start started that have exited (or are zombies), judged by PID
+# alone: while a daemon execs (setsid -> slurmd, setpriv -> munged) its command line reads
+# empty for a moment, so matching it, as our_pids does, can miss a live daemon
+exited() {
+  [ -f "$PIDS" ] || return 0
+  local name pid st
+  while read -r name pid; do
+    st=$(sed -n 's/^State:[[:space:]]*\([A-Z]\).*/\1/p' "/proc/$pid/status" 2> /dev/null || true)
+    case "$st" in "" | Z | X) echo "$name" ;; esac
+  done < "$PIDS"
+}
+
 env_line() { echo "export SLURM_CONF=$DIR/slurm.conf"; }
 
 install_missing() {
@@ -152,8 +164,9 @@ start_daemon() {   # name, command...: started in its own session, PID recorded
 show_logs() {
   local f
   for f in "$DIR"/log/*.out "$DIR"/log/*.log; do
-    [ -f "$f" ] && { echo "--- $f" >&2; tail -15 "$f" >&2; }
+    if [ -f "$f" ]; then echo "--- $f" >&2; tail -15 "$f" >&2; fi
   done
+  return 0   # an unmatched glob must not end the script (set -e) before it says why
 }
 
 stop() {
@@ -233,9 +246,10 @@ start() {
   [ -S "$mdir/munge.socket.2" ] || { show_logs; stop; die "munged did not start" 1; }
   start_daemon slurmctld slurmctld -D -f "$DIR/slurm.conf"
   start_daemon slurmd slurmd -D -f "$DIR/slurm.conf" -N "$node"
-  local t0=$SECONDS state=""
+  local t0=$SECONDS state="" dead
   while [ $((SECONDS - t0)) -lt "$WAIT_S" ]; do
-    all_up || { show_logs; stop; die "a daemon exited while starting" 1; }
+    dead=$(exited)
+    [ -z "$dead" ] || { show_logs; stop; die "exited while starting: $(echo $dead)" 1; }
     state=$(SLURM_CONF="$DIR/slurm.conf" sinfo -h -N -n "$node" -o %T 2> /dev/null || true)
     [ "$state" = "idle" ] && break
     sleep 0.5
