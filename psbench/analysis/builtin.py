@@ -492,12 +492,13 @@ def forensic(part="method", label=None, *, size=1024, seed=0, study=None):
     return run(part, label, size=size, seed=seed, study=study)
 
 
-def breechface(part="method", label=None, *, seed=0, study=None):
+def breechface(part="method", label=None, *, finish=None, integrator=None, seed=0,
+               study=None):
     """Real breech-face study: one part (method, scan, panels) of experiment breechface
     (:func:`psbench.forensic.breechface_runs.run`; payload json)."""
     from ..forensic.breechface_runs import run
 
-    return run(part, label, seed=seed, study=study)
+    return run(part, label, finish=finish, integrator=integrator, seed=seed, study=study)
 
 
 # ----------------------------------------------------------------------------- registry

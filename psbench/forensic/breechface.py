@@ -16,7 +16,6 @@ height error against the scan (µm, band-passed) and time.
 """
 from __future__ import annotations
 
-import itertools
 import time
 
 import numpy as np
@@ -134,7 +133,20 @@ def reconstruct_scan(height_um, valid, *, pixel_size, methods=STUDY_METHODS,
     return maps, rows
 
 
-def score_pairs(maps, valid, guns, *, pixel_size, **cmc_options):
+def _compare(ref, targets, za, va, maps, valid, pixel_size, options):
+    """CMC rows of one reference against ``targets`` (names); outputs of :func:`cmc` only."""
+    out = []
+    for b in targets:
+        t0 = time.perf_counter()
+        r = cmc(za, maps[b], va, valid[b], pixel_size=pixel_size, filtered=True, **options)
+        out.append({"count": r.count, "cells": len(r.cells), "ccf": r.ccf, "dx": r.pose.dx,
+                    "dy": r.pose.dy, "theta": r.pose.theta,
+                    "seconds": time.perf_counter() - t0})
+    return out
+
+
+def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=None,
+                **cmc_options):
     """CMC count and CCFmax of every pair of scans for one (method, integrator).
 
     Parameters
@@ -145,21 +157,76 @@ def score_pairs(maps, valid, guns, *, pixel_size, **cmc_options):
         scan -> valid mask.
     guns : dict
         scan -> gun.
+    pixel_size : float
+        µm per pixel of every map.
+    cache : StudyCache or path, optional
+        Keep each reference scan's comparisons (:class:`~.study_cache.StudyCache`):
+        a stopped study resumes, and maps met before are not compared again.
+    jobs : int, default 1
+        Worker processes (joblib; -1: one per core): the references are shared out.
+    progress : callable, optional
+        ``progress(done, total)`` after each reference scan (pairs done, pairs).
+    **cmc_options
+        Options of :func:`~psbench.forensic.cmc` (``filtered=True`` is implied).
 
     Returns
     -------
     DataFrame
-        ``a, b, same_gun, count, cells, ccf, dx, dy, theta, seconds``.
+        ``a, b, same_gun, count, cells, ccf, dx, dy, theta, seconds`` (seconds: the
+        comparison's wall time when it was computed, also if it came from the cache).
     """
+    from .study_cache import StudyCache, digest
+
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or not (
+            jobs == -1 or jobs >= 1):
+        raise PsbenchError(f"jobs must be a whole number >= 1, or -1 (one per core), got "
+                           f"{jobs!r}")
+    cache = cache if isinstance(cache, StudyCache) else StudyCache(cache)
+    names = sorted(maps)
+    keys = {n: digest(maps[n], valid[n], float(pixel_size)) for n in names}
+    options = {**cmc_options, "pixel_size": float(pixel_size), "filtered": True}
+
+    def one(i):
+        a, targets = names[i], names[i + 1:]
+        by_key = dict(zip((keys[b] for b in targets), targets))
+
+        def compute(missing):
+            return _compare(a, [by_key[k] for k in missing], maps[a], valid[a], maps, valid,
+                            pixel_size, cmc_options)
+        return cache.pairs(options, keys[a], [keys[b] for b in targets], compute)
+
+    total = len(names) * (len(names) - 1) // 2
+    results, done = [], 0
+    if jobs == 1:
+        for i in range(len(names) - 1):
+            results.append(one(i))
+            done += len(results[-1])
+            if progress:
+                progress(done, total)
+    else:
+        from joblib import Parallel, delayed
+
+        # the longest references first (reference i has n - 1 - i targets)
+        par = Parallel(n_jobs=jobs, return_as="generator_unordered")
+        order = list(range(len(names) - 1))
+        got = {}
+        for i, rows in par(delayed(_indexed)(one, i) for i in order):
+            got[i] = rows
+            done += len(rows)
+            if progress:
+                progress(done, total)
+        results = [got[i] for i in order]
     rows = []
-    for a, b in itertools.combinations(sorted(maps), 2):
-        t0 = time.perf_counter()
-        r = cmc(maps[a], maps[b], valid[a], valid[b], pixel_size=pixel_size, filtered=True,
-                **cmc_options)
-        rows.append({"a": a, "b": b, "same_gun": guns[a] == guns[b], "count": r.count,
-                     "cells": len(r.cells), "ccf": r.ccf, "dx": r.pose.dx, "dy": r.pose.dy,
-                     "theta": r.pose.theta, "seconds": time.perf_counter() - t0})
-    return pd.DataFrame(rows)
+    for i, res in enumerate(results):
+        a = names[i]
+        for b, r in zip(names[i + 1:], res):
+            rows.append({"a": a, "b": b, "same_gun": guns[a] == guns[b], **r})
+    return pd.DataFrame(rows, columns=["a", "b", "same_gun", "count", "cells", "ccf", "dx",
+                                       "dy", "theta", "seconds"])
+
+
+def _indexed(fn, i):
+    return i, fn(i)
 
 
 def equal_error_rate(positive, negative):

@@ -9,7 +9,8 @@ A run is one ``part``:
 
 ``method``
     One method label (:data:`~.breechface.STUDY_METHODS`, or ``"recipe"``: psbench's
-    :func:`~.recipe.reconstruct_heights`) on every scan and finish: each scan rendered
+    :func:`~.recipe.reconstruct_heights`) on every scan, for one finish and integrator
+    (``finish``, ``integrator``) or for all of the study's: each scan rendered
     by the rig simulator (:func:`~.breechface.render_scan`: the finish preset, the
     scan's own pixel size, the Chapter 7 acquisition, camera-noise seed = the run's
     ``seed``), solved, integrated by every integrator, band-passed; then every pair of
@@ -29,10 +30,18 @@ scale: fewer pixels, the same pixel size and band-pass). The CMC
 translation tolerance is cmcR's 20 px at its 6.25 µm working resolution, i.e.
 ``translation_tol_um`` = 125 µm, converted to pixels; the other CMC parameters are
 :data:`~.cmc.CMC_DEFAULTS`.
+
+Long studies: ``study["cache"]`` (a folder; the full scale's is
+``$PSBENCH_CACHE/breechface``) keeps every finished scan map and every reference scan's
+comparisons (:mod:`~.study_cache`), so a stopped run resumes; ``study["jobs"]`` shares
+the comparisons of one run among worker processes (default 1: the harness already runs
+one run per core). Progress (scans reconstructed, pairs compared, minutes left) goes to
+stderr.
 """
 from __future__ import annotations
 
 import base64
+import os
 import time
 import warnings
 
@@ -42,6 +51,8 @@ from .._shared.checks import PsbenchError
 from . import breechface as bf
 from .cmc import CMC_DEFAULTS
 from .identify import bandpass
+from .presets import FINISH_PRESETS
+from .study_cache import StudyCache
 
 __all__ = ["STUDY", "PARTS", "LABELS", "RECIPE", "run", "load_scans"]
 
@@ -53,7 +64,8 @@ PARTS = ("method", "scan", "panels")
 #: defaults of the ``study`` run parameter
 STUDY = {"folder": None, "guns": None, "per_gun": None, "crop": None,
          "finishes": ["brass", "nickel"], "integrators": ["poisson", "bilateral"],
-         "meter": "frame", "translation_tol_um": 125.0, "methods": None}
+         "meter": "frame", "translation_tol_um": 125.0, "methods": None, "cache": None,
+         "jobs": 1}
 
 
 def _options(study):
@@ -62,8 +74,6 @@ def _options(study):
     if extra:
         raise PsbenchError(f"study has unknown keys {sorted(extra)}; valid: {', '.join(st)}")
     st.update(study or {})
-    from .presets import FINISH_PRESETS
-
     for f in st["finishes"]:
         if f not in FINISH_PRESETS:
             raise PsbenchError(f"study finishes: {f!r} is not a finish preset; valid: "
@@ -71,6 +81,12 @@ def _options(study):
     for m in st["methods"] or ():
         if m not in LABELS:
             raise PsbenchError(f"study methods: {m!r} is not known; valid: {', '.join(LABELS)}")
+    j = st["jobs"]
+    if isinstance(j, bool) or not isinstance(j, int) or not (j == -1 or j >= 1):
+        raise PsbenchError(f"study jobs: must be a whole number >= 1, or -1 (one per core), "
+                           f"got {j!r}")
+    if st["cache"] is not None and not isinstance(st["cache"], (str, os.PathLike)):
+        raise PsbenchError(f"study cache: must be a folder path or null, got {st['cache']!r}")
     for i in st["integrators"]:
         if i not in ("poisson", "bilateral"):
             raise PsbenchError(f"study integrators: {i!r} is not known; valid: poisson, "
@@ -142,14 +158,24 @@ def _cmc_options(st, px):
     return {"translation_tol": float(st["translation_tol_um"]) / px}
 
 
-def _scores(maps, valid, guns, px, st, **head):
-    sc = bf.score_pairs(maps, valid, guns, pixel_size=px, **_cmc_options(st, px))
+def _scores(maps, valid, guns, px, st, cache=None, **head):
+    tag = "/".join(str(v) for v in head.values())
+    start = time.perf_counter()
+
+    def progress(done, total):
+        if done == total or time.perf_counter() - progress.last > 30:
+            progress.last = time.perf_counter()
+            left = (total - done) * (progress.last - start) / max(done, 1)
+            _say(f"{tag}: {done} of {total} pairs compared (about {left / 60:.0f} min left)")
+    progress.last = start
+    sc = bf.score_pairs(maps, valid, guns, pixel_size=px, cache=cache, jobs=st["jobs"],
+                        progress=progress, **_cmc_options(st, px))
     for k, v in head.items():
         sc.insert(0, k, v)
     return sc.to_dict("records")
 
 
-def run(part="method", label=None, *, seed=0, study=None):
+def run(part="method", label=None, *, finish=None, integrator=None, seed=0, study=None):
     """One run of the breechface study (see the module docstring).
 
     Parameters
@@ -157,6 +183,13 @@ def run(part="method", label=None, *, seed=0, study=None):
     part : {"method", "scan", "panels"}
     label : str
         Method label of a ``method`` run (:data:`LABELS`).
+    finish, integrator : str, optional
+        A ``method`` run of this finish preset / integrator only (default: every one of
+        the study's ``finishes`` / ``integrators``). One that the study does not list
+        returns ``{"skipped": True}`` at once, as a label outside ``methods`` does:
+        the full scale's grid has one run per label, finish and integrator (about half
+        an hour each on the 95 shared scans), so that a partly run study is a partly
+        filled grid.
     seed : int
         Camera-noise seed of every rendering.
     study : dict, optional
@@ -165,7 +198,8 @@ def run(part="method", label=None, *, seed=0, study=None):
         the most data), ``finishes``, ``integrators``, ``meter`` (exposure metering of
         :func:`~.breechface.render_scan`), ``translation_tol_um``, ``methods`` (the
         labels this scale runs; a ``method`` run of another label returns
-        ``{"skipped": True}`` at once).
+        ``{"skipped": True}`` at once), ``cache`` (folder of the study cache, or None)
+        and ``jobs`` (worker processes for the comparisons; -1: one per core).
 
     Returns
     -------
@@ -178,9 +212,22 @@ def run(part="method", label=None, *, seed=0, study=None):
         raise PsbenchError(f"part='method' needs label= one of {', '.join(LABELS)}, "
                            f"got {label!r}")
     st = _options(study)
+    for name, v, known, key in (("finish", finish, FINISH_PRESETS, "finishes"),
+                                ("integrator", integrator, ("poisson", "bilateral"),
+                                 "integrators")):
+        if v is None:
+            continue
+        if part != "method":
+            raise PsbenchError(f"{name}= is for part='method' runs only, got part={part!r}")
+        if v not in known:
+            raise PsbenchError(f"{name}={v!r} is not known; valid: {', '.join(known)}")
+        if v not in st[key]:
+            return {"part": part, "label": label, "seed": int(seed), "skipped": True}
+        st[key] = [v]
     if part == "method" and st["methods"] is not None and label not in st["methods"]:
         return {"part": part, "label": label, "seed": int(seed), "skipped": True}
     names, heights, valid, guns, px = load_scans(st)
+    cache = StudyCache(st["cache"])
     gun = dict(zip(names, guns))
     vmask = dict(zip(names, valid))
     head = {"part": part, "label": label, "seed": int(seed), "pixel_size": px,
@@ -189,14 +236,33 @@ def run(part="method", label=None, *, seed=0, study=None):
         maps = {n: bandpass(np.where(v, h, 0.0), v, pixel_size=px,
                             short=CMC_DEFAULTS["short"], long=CMC_DEFAULTS["long"])
                 for n, h, v in zip(names, heights, valid)}
-        return {**head, "scores": _scores(maps, vmask, gun, px, st, method=bf.SCAN,
+        return {**head, "scores": _scores(maps, vmask, gun, px, st, cache, method=bf.SCAN,
                                           integrator="-", finish="-")}
     if part == "panels":
         return {**head, **_panels(names, heights, valid, guns, px, st, seed)}
     per_scan, scores = [], []
     for finish in st["finishes"]:
-        maps = {}
-        for name, h, v in zip(names, heights, valid):
+        maps, rows = method_maps(label, names, heights, valid, px, st, seed=seed,
+                                 finish=finish, cache=cache)
+        per_scan += rows
+        for integ, mm in maps.items():
+            scores += _scores(mm, vmask, gun, px, st, cache, method=label,
+                              integrator=integ, finish=finish)
+    return {**head, "per_scan": per_scan, "scores": scores}
+
+
+def method_maps(label, names, heights, valid, px, st, *, seed, finish, cache=None):
+    """Every scan rendered with ``finish`` and reconstructed by method ``label``.
+
+    Returns ``({integrator: {scan: band-passed map}}, per-scan rows)``; with a
+    :class:`~.study_cache.StudyCache` each scan's maps are kept and reused.
+    """
+    from .study_cache import StudyCache, digest
+
+    cache = cache if isinstance(cache, StudyCache) else StudyCache(cache)
+    maps, per_scan = {}, []
+    for n, (name, h, v) in enumerate(zip(names, heights, valid)):
+        def compute():
             t0 = time.perf_counter()
             if label == RECIPE:
                 recipes = {i: _recipe(i) for i in st["integrators"]}
@@ -208,14 +274,25 @@ def run(part="method", label=None, *, seed=0, study=None):
                                               integrators=tuple(st["integrators"]),
                                               finish=finish, seed=seed, meter=st["meter"])
             total = time.perf_counter() - t0
-            for (meth, integ), z in m.items():
-                if meth != bf.SCAN:
-                    maps.setdefault(integ, {})[name] = z
-            per_scan += [{**r, "finish": finish, "scan": name, "scan_s": total} for r in rows]
-        for integ, mm in maps.items():
-            scores += _scores(mm, vmask, gun, px, st, method=label, integrator=integ,
-                              finish=finish)
-    return {**head, "per_scan": per_scan, "scores": scores}
+            rows = [{**r, "finish": finish, "scan": name, "scan_s": total} for r in rows]
+            return ([m[(label, i)] for i in st["integrators"]],
+                    [[r for r in rows if r["integrator"] == i] for i in st["integrators"]])
+        base = digest(h, v, finish, st["meter"], int(seed), label, float(px),
+                      CMC_DEFAULTS["short"], CMC_DEFAULTS["long"])
+        integs = list(st["integrators"])
+        m, rows = cache.maps([f"{base}-{integ}" for integ in integs], compute)
+        for integ, z in zip(integs, m):
+            maps.setdefault(integ, {})[name] = z
+        per_scan += [r for rr in rows for r in rr]
+        _say(f"{label} {finish}: {n + 1} of {len(names)} scans reconstructed")
+    return maps, per_scan
+
+
+def _say(msg):
+    """Progress of a long study on stderr (one line each)."""
+    import sys
+
+    print(f"breechface: {msg}", file=sys.stderr, flush=True)
 
 
 def _png(img):

@@ -19,10 +19,14 @@ needs_scans = pytest.mark.skipif(not (scans_folder() / "guns.csv").is_file(),
 
 def test_grid_runs_every_label_the_scan_and_the_panels():
     runs = expand(load("breechface"), "full")
-    labels = [r["args"].get("label") for r in runs if r["args"]["part"] == "method"]
-    assert labels == list(R.LABELS)
+    combos = [(r["args"]["label"], r["args"]["finish"], r["args"]["integrator"])
+              for r in runs if r["args"]["part"] == "method"]
+    assert sorted(combos) == sorted((m, f, i) for m in R.LABELS for f in ("brass", "nickel")
+                                    for i in ("poisson", "bilateral"))
     assert sorted(r["args"]["part"] for r in runs if r["args"]["part"] != "method") == [
         "panels", "scan"]
+    # a full-scale run takes hours: it keeps what it finished, so a stopped one resumes
+    assert {r["study"]["cache"].endswith("/breechface") for r in runs} == {True}
     ci = expand(load("breechface"), "ci")
     assert {tuple(r["study"]["methods"]) for r in ci} == {("None", "Th-Hi-Re-Sh", "recipe")}
 
@@ -34,6 +38,11 @@ def test_grid_runs_every_label_the_scan_and_the_panels():
     ({"part": "scan", "study": {"finishes": ["gold"]}}, "finishes"),
     ({"part": "scan", "study": {"integrators": ["spline"]}}, "integrators"),
     ({"part": "scan", "study": {"methods": ["magic"]}}, "methods"),
+    ({"part": "scan", "study": {"jobs": 0}}, "jobs"),
+    ({"part": "method", "label": "None", "finish": "gold"}, "finish"),
+    ({"part": "method", "label": "None", "integrator": "spline"}, "integrator"),
+    ({"part": "scan", "finish": "brass"}, "finish"),
+    ({"part": "scan", "study": {"cache": 5}}, "cache"),
 ])
 def test_bad_input(kwargs, word):
     with pytest.raises(PsbenchError, match=word):
@@ -43,6 +52,10 @@ def test_bad_input(kwargs, word):
 def test_a_label_outside_the_scale_is_skipped_at_once():
     out = R.run("method", "robust", study={"methods": ["None"]})
     assert out["skipped"] is True and "scores" not in out
+    for kw in ({"finish": "nickel"}, {"integrator": "bilateral"}):
+        out = R.run("method", "None", study={"finishes": ["brass"],
+                                             "integrators": ["poisson"]}, **kw)
+        assert out["skipped"] is True and "scores" not in out
 
 
 @needs_scans
@@ -62,7 +75,7 @@ def test_ci_scale_end_to_end(tmp_path):
     root = tmp_path / "results"
     main(["+experiment=breechface", "scale=ci", "jobs=1", f"results_dir={root}"])
     rows = read_store(root, experiment="breechface")
-    assert len(rows) == 9 and set(rows["status"]) == {"ok"}
+    assert len(rows) == 30 and set(rows["status"]) == {"ok"}
     agg = E.aggregate(rows[rows.status == "ok"])
     assert set(agg["part"]) == {"brass"}
     got = set(agg["row"])
