@@ -160,14 +160,18 @@ def _cmc_options(st, px):
 
 def _scores(maps, valid, guns, px, st, cache=None, **head):
     tag = "/".join(str(v) for v in head.values())
-    start = time.perf_counter()
+    seen = [(time.perf_counter(), 0)]
 
     def progress(done, total):
-        if done == total or time.perf_counter() - progress.last > 30:
-            progress.last = time.perf_counter()
-            left = (total - done) * (progress.last - start) / max(done, 1)
+        now = time.perf_counter()
+        seen.append((now, done))
+        if done == total or now - progress.last > 30:
+            progress.last = now
+            # the rate of the last references: cached ones come back at once
+            t0, d0 = seen[max(0, len(seen) - 11)]
+            left = (total - done) * (now - t0) / max(done - d0, 1)
             _say(f"{tag}: {done} of {total} pairs compared (about {left / 60:.0f} min left)")
-    progress.last = start
+    progress.last = seen[0][0]
     sc = bf.score_pairs(maps, valid, guns, pixel_size=px, cache=cache, jobs=st["jobs"],
                         progress=progress, **_cmc_options(st, px))
     for k, v in head.items():

@@ -20,7 +20,7 @@ from pathlib import Path
 from .._shared.checks import PsbenchError
 from .params import run_id, scene_key
 from .progress import Progress
-from .spec import LAUNCHERS
+from .spec import LAUNCHERS, RUN_KINDS
 from .store import default_root, stored_status
 from .supervise import run_supervised, worker_setup
 
@@ -44,10 +44,18 @@ def plan(runs, *, root, sweep, rerun=False, retry_failed=False):
 
 def make_chunks(runs, *, workers=1, target=None):
     """Group runs by scene (never split a group) and pack small groups into chunks of
-    about ``target`` runs (default: total / (4 * workers), between 1 and 16)."""
+    about ``target`` runs (default: total / (4 * workers), between 1 and 16).
+
+    Only solves share a scene: analysis, ``cond`` and plug-in runs are groups of one
+    (in the given order), so that runs of one analysis with equal scene parameters
+    still spread over the workers.
+    """
     groups = {}
-    for p in runs:
-        groups.setdefault(scene_key(p), []).append(p)
+    for i, p in enumerate(runs):
+        key = scene_key(p)
+        if p.get("kind") in _UNSHARED or p.get("kind") not in RUN_KINDS:
+            key += (f"{i:09d}",)
+        groups.setdefault(key, []).append(p)
     if target is None:
         target = max(1, min(16, math.ceil(len(runs) / (4 * max(1, workers)))))
     chunks, cur = [], []
@@ -59,6 +67,10 @@ def make_chunks(runs, *, workers=1, target=None):
     if cur:
         chunks.append(cur)
     return chunks
+
+
+#: run kinds that render no scene of their own to share
+_UNSHARED = ("analysis", "cond")
 
 
 def split_shards(chunks, shards):

@@ -205,6 +205,19 @@ def test_chunks_group_scenes():
     assert sorted(len(c) for s in sh for c in s) == [1] * 10 and len(sh) == 3
 
 
+def test_analysis_runs_with_one_scene_spread_over_workers_in_order():
+    # the runs of one analysis differ only in args (e.g. experiment breechface, where
+    # each takes half an hour): they must not form one chunk that one worker runs alone
+    ps = [run.normalize({"kind": "analysis", "analysis": "breechface",
+                         "args": {"part": "method", "label": lab}})
+          for lab in ("None", "Th-Hi-Re-Sh", "recipe", "robust")]
+    assert len({run.scene_key(p) for p in ps}) == 1
+    chunks = shards.make_chunks(ps, workers=2, target=1)
+    assert [len(c) for c in chunks] == [1, 1, 1, 1]
+    assert [c[0]["args"]["label"] for c in chunks] == ["None", "Th-Hi-Re-Sh", "recipe",
+                                                       "robust"]
+
+
 @pytest.mark.parametrize("launcher", ["submitit_debug", "submitit_local"])
 def test_sharded_execution_two_shards(tmp_path, launcher):
     runs = _noop_runs(5, fail={4})
