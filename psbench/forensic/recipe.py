@@ -36,6 +36,12 @@ Defaults and their basis:
 - ``mask`` = "Re" with the thesis's Table 5.2 threshold: the variant that kept the
   fine marks and the amplitude under both exposure rules (numbers above).
 - Poisson integration over ``object_mask``: heights in µm, offset arbitrary.
+
+Checked afterwards on all 95 shared scans (experiment ``breechface``, brass, Poisson,
+4,465 pairs): AUC 1.000 (CMC and CCFmax) as for the scans, 0 false positives and 0
+false negatives at 6 cells (scans: 0 and 0), CMC separation 13 (scans 14), CCF
+separation 0.530 (scans 0.499; least squares 0.505, Th-Hi-Re-Sh 0.429). None of the
+defaults above was changed for it.
 """
 from __future__ import annotations
 
