@@ -133,8 +133,9 @@ def reconstruct_scan(height_um, valid, *, pixel_size, methods=STUDY_METHODS,
     return maps, rows
 
 
-def _compare(ref, targets, za, va, maps, valid, pixel_size, options):
-    """CMC rows of one reference against ``targets`` (names); outputs of :func:`cmc` only."""
+def _compare(targets, za, va, maps, valid, pixel_size, options):
+    """CMC rows of one reference (``za``, ``va``) against ``targets`` (names); outputs of
+    :func:`cmc` only."""
     out = []
     for b in targets:
         t0 = time.perf_counter()
@@ -143,6 +144,14 @@ def _compare(ref, targets, za, va, maps, valid, pixel_size, options):
                     "dy": r.pose.dy, "theta": r.pose.theta,
                     "seconds": time.perf_counter() - t0})
     return out
+
+
+def check_jobs(jobs, name="jobs"):
+    """Refuse a worker count that is not a whole number >= 1 or -1 (one per core)."""
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or not (
+            jobs == -1 or jobs >= 1):
+        raise PsbenchError(f"{name} must be a whole number >= 1, or -1 (one per core), got "
+                           f"{jobs!r}")
 
 
 def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=None,
@@ -177,10 +186,7 @@ def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=N
     """
     from .study_cache import StudyCache, digest
 
-    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or not (
-            jobs == -1 or jobs >= 1):
-        raise PsbenchError(f"jobs must be a whole number >= 1, or -1 (one per core), got "
-                           f"{jobs!r}")
+    check_jobs(jobs)
     cache = cache if isinstance(cache, StudyCache) else StudyCache(cache)
     names = sorted(maps)
     keys = {n: digest(maps[n], valid[n], float(pixel_size)) for n in names}
@@ -191,31 +197,25 @@ def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=N
         by_key = dict(zip((keys[b] for b in targets), targets))
 
         def compute(missing):
-            return _compare(a, [by_key[k] for k in missing], maps[a], valid[a], maps, valid,
+            return _compare([by_key[k] for k in missing], maps[a], valid[a], maps, valid,
                             pixel_size, cmc_options)
         return cache.pairs(options, keys[a], [keys[b] for b in targets], compute)
 
     total = len(names) * (len(names) - 1) // 2
-    results, done = [], 0
     if jobs == 1:
-        for i in range(len(names) - 1):
-            results.append(one(i))
-            done += len(results[-1])
-            if progress:
-                progress(done, total)
+        done_refs = ((i, one(i)) for i in range(len(names) - 1))
     else:
         from joblib import Parallel, delayed
 
-        # the longest references first (reference i has n - 1 - i targets)
-        par = Parallel(n_jobs=jobs, return_as="generator_unordered")
-        order = list(range(len(names) - 1))
-        got = {}
-        for i, rows in par(delayed(_indexed)(one, i) for i in order):
-            got[i] = rows
-            done += len(rows)
-            if progress:
-                progress(done, total)
-        results = [got[i] for i in order]
+        done_refs = Parallel(n_jobs=jobs, return_as="generator_unordered")(
+            delayed(_indexed)(one, i) for i in range(len(names) - 1))
+    got, done = {}, 0
+    for i, res in done_refs:
+        got[i] = res
+        done += len(res)
+        if progress:
+            progress(done, total)
+    results = [got[i] for i in range(len(names) - 1)]
     rows = []
     for i, res in enumerate(results):
         a = names[i]

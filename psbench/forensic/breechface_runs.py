@@ -81,10 +81,7 @@ def _options(study):
     for m in st["methods"] or ():
         if m not in LABELS:
             raise PsbenchError(f"study methods: {m!r} is not known; valid: {', '.join(LABELS)}")
-    j = st["jobs"]
-    if isinstance(j, bool) or not isinstance(j, int) or not (j == -1 or j >= 1):
-        raise PsbenchError(f"study jobs: must be a whole number >= 1, or -1 (one per core), "
-                           f"got {j!r}")
+    bf.check_jobs(st["jobs"], "study jobs")
     if st["cache"] is not None and not isinstance(st["cache"], (str, os.PathLike)):
         raise PsbenchError(f"study cache: must be a folder path or null, got {st['cache']!r}")
     for i in st["integrators"]:
