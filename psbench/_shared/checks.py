@@ -20,6 +20,16 @@ def choice(value, valid, name):
     return value
 
 
+def workers(value, name="jobs"):
+    """Refuse a worker or thread count that is not a whole number >= 1 or -1 (one per
+    core)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (
+            value == -1 or value >= 1):
+        raise PsbenchError(f"{name} must be a whole number >= 1, or -1 (one per core), got "
+                           f"{value!r}")
+    return int(value)
+
+
 def as_images(images, name="images", *, min_count=1):
     """Validate an image stack and return it as C-contiguous float32 (k, H, W).
 

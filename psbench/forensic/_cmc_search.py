@@ -21,11 +21,10 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.lib.stride_tricks import sliding_window_view
 
-__all__ = ["rotated", "pearson", "register_cells"]
+__all__ = ["rotated", "patches", "pearson", "register_cells", "SEARCH_REVISION"]
 
-#: threads of the transforms (the machine's cores)
-WORKERS = -1
-
+#: bump when the search's results change: study caches are keyed on it
+SEARCH_REVISION = 2
 
 def stacked(z, m):
     """Values and mask as one (H, W, 2) float32 image: one warp moves both."""
@@ -86,49 +85,65 @@ class Cells:
         self.need = np.maximum(float(floor), 0.5 * cnt) - 0.5
         self._spectra = {}
 
-    def spectra(self, fh, fw):
+    def spectra(self, fh, fw, workers=1):
         if (fh, fw) not in self._spectra:
             ch, cw = self.shape
             pad = np.zeros((len(self.ca), fh, fw), np.float32)
             pad[:, :ch, :cw] = self.ca
-            FA = np.conj(sfft.rfft2(pad, workers=WORKERS))
+            FA = np.conj(sfft.rfft2(pad, workers=workers))
             pad[:, :ch, :cw] = self.cm
-            FM = np.conj(sfft.rfft2(pad, workers=WORKERS))
+            FM = np.conj(sfft.rfft2(pad, workers=workers))
             self._spectra[(fh, fw)] = FA, FM
         return self._spectra[(fh, fw)]
 
 
-def search(cells, idx, B, MB, cy, cx, hy, hx, limit):
+def patches(zm, theta, cb, ca, rows, cols, shape):
+    """Regions of ``shape`` at (``rows``, ``cols``) of the target rotated as
+    :func:`rotated` would rotate it into its whole frame, warped one region at a time:
+    the refinement needs a few small regions per angle, not the whole frame."""
+    M = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), float(theta), 1.0)
+    M[:, 2] += (ca[0] - cb[0], ca[1] - cb[1])
+    out = np.empty((len(rows),) + tuple(shape) + (2,), np.float32)
+    size = (shape[1], shape[0])
+    for i, (r, c) in enumerate(zip(rows, cols)):     # a few regions per angle
+        Mi = M.copy()
+        Mi[:, 2] -= (c, r)
+        out[i] = cv2.warpAffine(zm, Mi, size, flags=cv2.INTER_LINEAR, borderValue=(0.0, 0.0))
+    mr = out[..., 1] > 0.999
+    return np.where(mr, out[..., 0], 0.0).astype(np.float32), mr
+
+
+def search(cells, idx, rb, rm, cy, cx, hy, hx, limit, workers=1):
     """Best translation of cells ``idx`` within (cy +- hy, cx +- hx) on the rotated target.
 
+    ``rb, rm`` (n, ch + 2 hy, cw + 2 hx) are the target's values and mask in each cell's
+    region, whose corner is at (top + cy - hy, left + cx - hx) of the rotated target.
     ``cy, cx`` (per cell) and the result are shifts of the cell in target pixels (the
-    cell at ``top + s`` on B); shifts beyond ``limit`` (|sy|, |sx|) are not taken.
+    cell at ``top + s`` on it); shifts beyond ``limit`` (|sy|, |sx|) are not taken.
     Returns Pearson r (NaN if none), sy, sx and the overlap (fraction of each cell's
     valid pixels that fall on the target's there).
     """
     ch, cw = cells.shape
     th, tw = ch + 2 * hy, cw + 2 * hx
     fh, fw = sfft.next_fast_len(th, real=True), sfft.next_fast_len(tw, real=True)
-    FA, FM = cells.spectra(fh, fw)
-    FA, FM = FA[idx], FM[idx]
-    rows = cells.tops[idx] + cy - hy
-    cols = cells.lefts[idx] + cx - hx
-    rb = sliding_window_view(B, (th, tw))[rows, cols]
-    rm = sliding_window_view(MB, (th, tw))[rows, cols]
+    FA, FM = cells.spectra(fh, fw, workers)
+    every = len(idx) == len(FA)
+    if not every:
+        FA, FM = FA[idx], FM[idx]
     n = len(idx)
     pad = np.zeros((n, fh, fw), np.float32)
     pad[:, :th, :tw] = rb
-    FB = sfft.rfft2(pad, workers=WORKERS)
-    pad[:, :th, :tw] = rb * rb
-    FB2 = sfft.rfft2(pad, workers=WORKERS)
+    FB = sfft.rfft2(pad, workers=workers)
+    np.multiply(rb, rb, out=pad[:, :th, :tw])
+    FB2 = sfft.rfft2(pad, workers=workers)
     pad[:, :th, :tw] = rm
-    FMB = sfft.rfft2(pad, workers=WORKERS)
+    FMB = sfft.rfft2(pad, workers=workers)
     del pad
     # index t: cell pixel u against region pixel u + t, i.e. shift s = c + t - h
     sl = (slice(None), slice(0, 2 * hy + 1), slice(0, 2 * hx + 1))
-    num = sfft.irfft2(FA * FB, s=(fh, fw), workers=WORKERS)[sl]
-    den = sfft.irfft2(FM * FB2, s=(fh, fw), workers=WORKERS)[sl]
-    over = sfft.irfft2(FM * FMB, s=(fh, fw), workers=WORKERS)[sl]
+    num = sfft.irfft2(FA * FB, s=(fh, fw), workers=workers)[sl]
+    den = sfft.irfft2(FM * FB2, s=(fh, fw), workers=workers)[sl]
+    over = sfft.irfft2(FM * FMB, s=(fh, fw), workers=workers)[sl]
     with np.errstate(invalid="ignore", divide="ignore"):
         score = num / np.sqrt(np.maximum(den, 1e-12) * cells.energy[idx, None, None])
     sy_all = cy[:, None] + np.arange(2 * hy + 1)[None, :] - hy
@@ -139,21 +154,37 @@ def search(cells, idx, B, MB, cy, cx, hy, hx, limit):
     flat = score.reshape(n, -1).argmax(1)
     iy, ix = np.divmod(flat, 2 * hx + 1)
     sy, sx = cy + iy - hy, cx + ix - hx
-    pb = sliding_window_view(B, (ch, cw))[cells.tops[idx] + sy, cells.lefts[idx] + sx]
-    pm = sliding_window_view(MB, (ch, cw))[cells.tops[idx] + sy, cells.lefts[idx] + sx]
+    at = np.arange(n)
+    pb = sliding_window_view(rb, (ch, cw), axis=(1, 2))[at, iy, ix]
+    pm = sliding_window_view(rm, (ch, cw), axis=(1, 2))[at, iy, ix]
     both = (cells.cm[idx] & pm).reshape(n, -1)
     r = pearson(cells.ca[idx].reshape(n, -1), pb.reshape(n, -1), both, cells.need[idx])
-    r[~np.isfinite(score.reshape(n, -1)[np.arange(n), flat])] = np.nan
+    r[~np.isfinite(score.reshape(n, -1)[at, flat])] = np.nan
     return r, sy, sx, both.sum(1) / np.maximum(cells.cnt[idx], 1)
 
 
-def register_cells(problem, angles, *, coarse=2, refine=1):
+def _whole(p, theta, workers):
+    """Every cell searched over its whole region on the target rotated by ``theta``."""
+    cells = p["cells"]
+    n = len(cells.ca)
+    hy, hx = p["half"]
+    ch, cw = cells.shape
+    B, MB, _ = rotated(p["zmb"], theta, p["cb"], p["ca"], p["frame"])
+    rows, cols = cells.tops - hy, cells.lefts - hx
+    rb = sliding_window_view(B, (ch + 2 * hy, cw + 2 * hx))[rows, cols]
+    rm = sliding_window_view(MB, (ch + 2 * hy, cw + 2 * hx))[rows, cols]
+    zeros = np.zeros(n, int)
+    return np.stack(search(cells, np.arange(n), rb, rm, zeros, zeros, hy, hx, p["half"],
+                           workers), 1)
+
+
+def register_cells(problem, angles, *, coarse=2, refine=1, workers=1):
     """Best (ccf, sy, sx, angle index) of every cell over ``angles``.
 
     ``problem(f)`` returns the problem at block size f (1 = full resolution): a dict of
-    ``cells`` (:class:`Cells`), ``zb, mb`` (target), ``cb, ca`` (rotation centre on the
-    target, its place in the frame), ``frame`` (shape), ``half`` (the search's
-    half-widths in rows, cols).
+    ``cells`` (:class:`Cells`), ``zmb`` (target, :func:`stacked`), ``cb, ca`` (rotation
+    centre on the target, its place in the frame), ``frame`` (shape), ``half`` (the
+    search's half-widths in rows, cols). ``workers``: threads of the transforms.
 
     Returns
     -------
@@ -164,38 +195,28 @@ def register_cells(problem, angles, *, coarse=2, refine=1):
         Index of its best angle.
     """
     K = len(angles)
-    if coarse <= 1:
-        p = problem(1)
-        n = len(p["cells"].ca)
-        best = np.full((K, n, 4), np.nan)
-        zeros = np.zeros(n, int)
-        for k, theta in enumerate(angles):
-            B, MB, _ = rotated(p["zmb"], theta, p["cb"], p["ca"], p["frame"])
-            best[k] = np.stack(search(p["cells"], np.arange(n), B, MB, zeros, zeros,
-                                      *p["half"], p["half"]), 1)
-        return _pick(best)
     f = int(coarse)
     pc = problem(f)
-    n = len(pc["cells"].ca)
-    zeros = np.zeros(n, int)
-    rough = np.full((K, n, 4), np.nan)
-    for k, theta in enumerate(angles):
-        B, MB, _ = rotated(pc["zmb"], theta, pc["cb"], pc["ca"], pc["frame"])
-        rough[k] = np.stack(search(pc["cells"], np.arange(n), B, MB, zeros, zeros,
-                                   *pc["half"], pc["half"]), 1)
+    rough = np.stack([_whole(pc, theta, workers) for theta in angles])
+    if f <= 1:
+        return _pick(rough)
+    n = rough.shape[1]
     kc = _pick(rough)[-1]
     p = problem(1)
+    cells = p["cells"]
+    ch, cw = cells.shape
     best = np.full((K, n, 4), np.nan)
     win = 2 * f
     for k, theta in enumerate(angles):
         idx = np.flatnonzero((np.abs(kc - k) <= refine) & np.isfinite(rough[k, :, 0]))
         if not len(idx):
             continue
-        B, MB, _ = rotated(p["zmb"], theta, p["cb"], p["ca"], p["frame"])
         cy = (f * rough[k, idx, 1]).astype(int)
         cx = (f * rough[k, idx, 2]).astype(int)
-        best[k, idx] = np.stack(search(p["cells"], idx, B, MB, cy, cx, win, win,
-                                       p["half"]), 1)
+        rb, rm = patches(p["zmb"], theta, p["cb"], p["ca"], cells.tops[idx] + cy - win,
+                         cells.lefts[idx] + cx - win, (ch + 2 * win, cw + 2 * win))
+        best[k, idx] = np.stack(search(cells, idx, rb, rm, cy, cx, win, win, p["half"],
+                                       workers), 1)
     return _pick(best)
 
 

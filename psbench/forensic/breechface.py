@@ -23,8 +23,10 @@ import pandas as pd
 
 from ..integrate.bilateral import bilateral_integrate  # noqa: F401  (INTEGRATORS uses it)
 from .._shared.checks import PsbenchError
+from .._shared.checks import workers as check_workers
 from ..solve import solve
 from ..surfaces import surface_from_height
+from ._cmc_search import SEARCH_REVISION
 from .cmc import CMC_DEFAULTS, CMC_THRESHOLD, cmc
 from .identify import bandpass
 from .pipeline import INTEGRATORS, auc, solve_kwargs
@@ -139,19 +141,12 @@ def _compare(targets, za, va, maps, valid, pixel_size, options):
     out = []
     for b in targets:
         t0 = time.perf_counter()
-        r = cmc(za, maps[b], va, valid[b], pixel_size=pixel_size, filtered=True, **options)
+        r = cmc(za, maps[b], va, valid[b], pixel_size=pixel_size, filtered=True, workers=1,
+                **options)
         out.append({"count": r.count, "cells": len(r.cells), "ccf": r.ccf, "dx": r.pose.dx,
                     "dy": r.pose.dy, "theta": r.pose.theta,
                     "seconds": time.perf_counter() - t0})
     return out
-
-
-def check_jobs(jobs, name="jobs"):
-    """Refuse a worker count that is not a whole number >= 1 or -1 (one per core)."""
-    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or not (
-            jobs == -1 or jobs >= 1):
-        raise PsbenchError(f"{name} must be a whole number >= 1, or -1 (one per core), got "
-                           f"{jobs!r}")
 
 
 def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=None,
@@ -176,7 +171,8 @@ def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=N
     progress : callable, optional
         ``progress(done, total)`` after each reference scan (pairs done, pairs).
     **cmc_options
-        Options of :func:`~psbench.forensic.cmc` (``filtered=True`` is implied).
+        Options of :func:`~psbench.forensic.cmc` (``filtered=True`` is implied; each
+        comparison runs on one thread: ``jobs`` is the parallelism).
 
     Returns
     -------
@@ -186,11 +182,13 @@ def score_pairs(maps, valid, guns, *, pixel_size, cache=None, jobs=1, progress=N
     """
     from .study_cache import StudyCache, digest
 
-    check_jobs(jobs)
+    check_workers(jobs, "jobs")
     cache = cache if isinstance(cache, StudyCache) else StudyCache(cache)
     names = sorted(maps)
     keys = {n: digest(maps[n], valid[n], float(pixel_size)) for n in names}
-    options = {**cmc_options, "pixel_size": float(pixel_size), "filtered": True}
+    # the search's revision too: a cache written by another search is not read
+    options = {**cmc_options, "pixel_size": float(pixel_size), "filtered": True,
+               "search": SEARCH_REVISION}
 
     def one(i):
         a, targets = names[i], names[i + 1:]

@@ -33,7 +33,11 @@ translation tolerance is cmcR's 20 px at its 6.25 µm working resolution, i.e.
 
 Long studies: ``study["cache"]`` (a folder; the full scale's is
 ``$PSBENCH_CACHE/breechface``) keeps every finished scan map and every reference scan's
-comparisons (:mod:`~.study_cache`), so a stopped run resumes; ``study["jobs"]`` shares
+comparisons (:mod:`~.study_cache`), so a stopped run resumes; ``study["seed"]`` (a
+Parquet table; the full scale's is the committed ``reports/data/breechface_pairs.parquet``)
+holds the comparisons of earlier checkouts, keyed by the digests of the maps compared:
+a run reads the pairs whose maps are bit-identical to the seed's instead of comparing
+them again, and adds its own to it when it ends; ``study["jobs"]`` shares
 the comparisons of one run among worker processes (default 1: the harness already runs
 one run per core). Progress (scans reconstructed, pairs compared, minutes left) goes to
 stderr.
@@ -48,6 +52,7 @@ import warnings
 import numpy as np
 
 from .._shared.checks import PsbenchError
+from .._shared.checks import workers as check_workers
 from . import breechface as bf
 from .cmc import CMC_DEFAULTS
 from .identify import bandpass
@@ -65,7 +70,7 @@ PARTS = ("method", "scan", "panels")
 STUDY = {"folder": None, "guns": None, "per_gun": None, "crop": None,
          "finishes": ["brass", "nickel"], "integrators": ["poisson", "bilateral"],
          "meter": "frame", "translation_tol_um": 125.0, "methods": None, "cache": None,
-         "jobs": 1}
+         "seed": None, "jobs": 1}
 
 
 def _options(study):
@@ -81,9 +86,10 @@ def _options(study):
     for m in st["methods"] or ():
         if m not in LABELS:
             raise PsbenchError(f"study methods: {m!r} is not known; valid: {', '.join(LABELS)}")
-    bf.check_jobs(st["jobs"], "study jobs")
-    if st["cache"] is not None and not isinstance(st["cache"], (str, os.PathLike)):
-        raise PsbenchError(f"study cache: must be a folder path or null, got {st['cache']!r}")
+    check_workers(st["jobs"], "study jobs")
+    for key, what in (("cache", "a folder path"), ("seed", "a Parquet file path")):
+        if st[key] is not None and not isinstance(st[key], (str, os.PathLike)):
+            raise PsbenchError(f"study {key}: must be {what} or null, got {st[key]!r}")
     for i in st["integrators"]:
         if i not in ("poisson", "bilateral"):
             raise PsbenchError(f"study integrators: {i!r} is not known; valid: poisson, "
@@ -199,7 +205,8 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
         the most data), ``finishes``, ``integrators``, ``meter`` (exposure metering of
         :func:`~.breechface.render_scan`), ``translation_tol_um``, ``methods`` (the
         labels this scale runs; a ``method`` run of another label returns
-        ``{"skipped": True}`` at once), ``cache`` (folder of the study cache, or None)
+        ``{"skipped": True}`` at once), ``cache`` (folder of the study cache, or None),
+        ``seed`` (Parquet table of earlier comparisons, read and extended; or None)
         and ``jobs`` (worker processes for the comparisons; -1: one per core).
 
     Returns
@@ -228,7 +235,7 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
     if part == "method" and st["methods"] is not None and label not in st["methods"]:
         return {"part": part, "label": label, "seed": int(seed), "skipped": True}
     names, heights, valid, guns, px = load_scans(st)
-    cache = StudyCache(st["cache"])
+    cache = StudyCache(st["cache"], st["seed"])
     gun = dict(zip(names, guns))
     vmask = dict(zip(names, valid))
     head = {"part": part, "label": label, "seed": int(seed), "pixel_size": px,
@@ -237,8 +244,10 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
         maps = {n: bandpass(np.where(v, h, 0.0), v, pixel_size=px,
                             short=CMC_DEFAULTS["short"], long=CMC_DEFAULTS["long"])
                 for n, h, v in zip(names, heights, valid)}
-        return {**head, "scores": _scores(maps, vmask, gun, px, st, cache, method=bf.SCAN,
-                                          integrator="-", finish="-")}
+        scores = _scores(maps, vmask, gun, px, st, cache, method=bf.SCAN, integrator="-",
+                         finish="-")
+        _export(cache)
+        return {**head, "scores": scores}
     if part == "panels":
         return {**head, **_panels(names, heights, valid, guns, px, st, seed)}
     per_scan, scores = [], []
@@ -249,7 +258,14 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
         for integ, mm in maps.items():
             scores += _scores(mm, vmask, gun, px, st, cache, method=label,
                               integrator=integ, finish=finish)
+    _export(cache)
     return {**head, "per_scan": per_scan, "scores": scores}
+
+
+def _export(cache):
+    """The run's comparisons into the study's seed table (when it has one)."""
+    if cache.seed is not None and cache.root is not None:
+        _say(f"{cache.export()} comparisons in the seed {cache.seed}")
 
 
 def method_maps(label, names, heights, valid, px, st, *, seed, finish, cache=None):

@@ -27,6 +27,8 @@ def test_grid_runs_every_label_the_scan_and_the_panels():
         "panels", "scan"]
     # a full-scale run takes hours: it keeps what it finished, so a stopped one resumes
     assert {r["study"]["cache"].endswith("/breechface") for r in runs} == {True}
+    # and reads the comparisons of earlier checkouts from the committed seed
+    assert {r["study"]["seed"] for r in runs} == {"reports/data/breechface_pairs.parquet"}
     ci = expand(load("breechface"), "ci")
     assert {tuple(r["study"]["methods"]) for r in ci} == {("None", "Th-Hi-Re-Sh", "recipe")}
 
@@ -43,6 +45,7 @@ def test_grid_runs_every_label_the_scan_and_the_panels():
     ({"part": "method", "label": "None", "integrator": "spline"}, "integrator"),
     ({"part": "scan", "finish": "brass"}, "finish"),
     ({"part": "scan", "study": {"cache": 5}}, "cache"),
+    ({"part": "scan", "study": {"seed": 5}}, "seed"),
 ])
 def test_bad_input(kwargs, word):
     with pytest.raises(PsbenchError, match=word):

@@ -120,6 +120,7 @@ def test_filtered_skips_the_bandpass_and_tolerances_matter():
     ({"pixel_size": PIXEL, "region": 1}, "region"),
     ({"pixel_size": PIXEL, "coarse": 0}, "coarse"),
     ({"pixel_size": PIXEL, "refine": -1}, "refine"),
+    ({"pixel_size": PIXEL, "workers": 0}, "workers"),
 ])
 def test_bad_options(kwargs, match):
     z, v = _field(3, 96)
@@ -135,3 +136,22 @@ def test_bad_arrays():
         cmc(z, z, v, v[:10], pixel_size=PIXEL)
     with pytest.raises(PsbenchError, match="64 pixels"):
         cmc(z, np.full_like(z, np.nan), pixel_size=PIXEL)
+
+
+def test_refinement_regions_equal_the_whole_rotated_frame():
+    from psbench.forensic import _cmc_search as ccs
+
+    z, v = _field(2)
+    zm = ccs.stacked(z, v)
+    frame = (z.shape[0] + 40, z.shape[1] + 40)
+    cb, ca = (0.5 * z.shape[1] - 0.3, 0.5 * z.shape[0] + 0.2), (0.5 * frame[1], 0.5 * frame[0])
+    rows, cols = np.array([3, 50, 101]), np.array([17, 0, 88])
+    for theta in (-7.5, 0.0, 12.0):
+        B, MB, _ = ccs.rotated(zm, theta, cb, ca, frame)
+        pb, pm = ccs.patches(zm, theta, cb, ca, rows, cols, (30, 41))
+        for i, (r, c) in enumerate(zip(rows, cols)):
+            # the same warp up to OpenCV's 1/32 px grid of source positions, on which a
+            # shifted matrix may round a few pixels the other way
+            d = np.abs(pb[i] - B[r:r + 30, c:c + 41])
+            assert (d < 1e-5).mean() > 0.95 and d.max() < 0.05 * z[v].std()
+            assert (pm[i] == MB[r:r + 30, c:c + 41]).mean() > 0.99
