@@ -15,14 +15,14 @@ totals and key findings first) and ``report.json``.
 Scales: the full-scale report goes to ``<out>/``, the ci-scale one to ``<out>/ci/``. By
 default (``--scale auto``) every scale the store holds is reported; a report that holds
 data is never replaced by an emptier one: the pages of experiments the store lacks at
-that scale are kept as they are (listed apart on the index), and a store with no run at
-that scale, fewer runs than a page reports, or a folder of another scale stops the
-command with a one-line message and exit status 2, changing nothing (``--force``
-overrides; see :mod:`psbench.report.scales`). A page whose grid is incomplete says so at
-the top (runs present / expected) and its verdicts are PROVISIONAL. ``--panels``
-additionally renders and solves ONE small scene set for the image panels (labelled as
-such; :mod:`psbench.report.panels`). All files are written atomically; corrupt or
-foreign Parquet files are named in a warning and skipped.
+that scale are kept as they are (still rows of the index, marked kept, and counted in
+its totals), and a store with no run at that scale, fewer runs than a page reports, or a
+folder of another scale stops the command with a one-line message and exit status 2,
+changing nothing (``--force`` overrides; see :mod:`psbench.report.scales`). A page
+whose grid is incomplete says so at the top (runs present / expected) and its verdicts
+are PROVISIONAL. ``--panels`` additionally renders and solves ONE small scene set for the
+image panels (labelled as such; :mod:`psbench.report.panels`). All files are written
+atomically; corrupt or foreign Parquet files are named in a warning and skipped.
 """
 from __future__ import annotations
 
@@ -123,22 +123,20 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         panel_files = sorted(p.name for p in (out / "panels").glob("*.png"))
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     blocks = G.index_blocks(
-        scale=scale, size_text=_size_text(summaries, scale),
+        scale=scale, size_text=_size_text(summaries, scale, kept),
         provenance=_provenance(df, summaries, results, now),
         summaries=summaries, verdicts_by=verdicts_by, messages=messages, empty=df.empty,
-        other_link=_other_link(out, scale), panels=bool(panel_files), kept=kept,
+        other_link=_other_link(out, scale), panels=bool(panel_files), kept=kept, order=names,
         deviations=[(n, getattr(T.experiment_module(n), "NOTES", "")) for n in names
                     if getattr(T.experiment_module(n), "NOTES", "")])
     write_page(out, "index", blocks, f"psbench report ({scale})")
     write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now,
-                                              kept))
-    all_v = [v for s in summaries if s["in_totals"] for v in verdicts_by[s["experiment"]]]
+                                              kept, order=names))
+    tot = G.totals(summaries, kept)           # the index's totals, kept pages included
     log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
-        f"{sum(v.status == V.SUPPORTED for v in all_v)} SUPPORTED, "
-        f"{sum(v.status == V.NOT_SUPPORTED for v in all_v)} NOT SUPPORTED, "
-        f"{sum(v.status == V.INCONCLUSIVE for v in all_v)} INCONCLUSIVE"
-        + (f", {n_prov} PROVISIONAL" if (n_prov := sum(v.status == V.PROVISIONAL
-                                                      for v in all_v)) else "") + ")"
+        f"{tot[V.SUPPORTED]} SUPPORTED, {tot[V.NOT_SUPPORTED]} NOT SUPPORTED, "
+        f"{tot[V.INCONCLUSIVE]} INCONCLUSIVE"
+        + (f", {tot[V.PROVISIONAL]} PROVISIONAL" if tot[V.PROVISIONAL] else "") + ")"
         + (f"; kept the pages of {', '.join(kept)} (runs this store lacks)" if kept else ""))
     return out / "index.html"
 
@@ -148,8 +146,10 @@ def _warn(messages):
         print(f"warning: {m}", file=sys.stderr, flush=True)
 
 
-def _size_text(summaries, scale) -> str:
-    sizes = sorted({int(s["size"]) for s in summaries if s["size"]})
+def _size_text(summaries, scale, kept=None) -> str:
+    # kept pages' sizes too (their entries', :func:`scales.kept`): the index covers them
+    sizes = sorted({int(s["size"]) for s in summaries if s["size"]}
+                   | {int(e["size"]) for e in (kept or {}).values() if e.get("size")})
     sz = ", ".join(f"{x} x {x}" for x in sizes) or "no images"
     return (f"Thesis tables and figures re-run by psbench at the `{scale}` scale (image sizes "
             f"{sz}; the thesis used 512 x 512), compared with the thesis's printed values.")

@@ -20,7 +20,8 @@ from . import verdicts as V
 from .aggregates import data_name
 from ..io.html import STATUSES, Link
 
-__all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_totals"]
+__all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_totals",
+           "totals"]
 
 
 def display_path(path) -> str:
@@ -193,23 +194,57 @@ def _findings(summaries, verdicts_by) -> pd.DataFrame:
                         columns=["status", "experiment", "claim", "psbench's numbers"])
 
 
-def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messages,
-                 empty, other_link, panels, deviations, kept=None) -> list:
-    """Blocks of ``index`` for one scale; ``kept``: ``{experiment: entry}`` of the pages
-    left from an earlier build (:func:`psbench.report.scales.kept`)."""
-    all_v = [v for vs in verdicts_by.values() for v in vs]
+#: summary keys of the verdict counts, by status
+_KEYS = {V.SUPPORTED: "supported", V.NOT_SUPPORTED: "not_supported",
+         V.INCONCLUSIVE: "inconclusive", V.PROVISIONAL: "provisional"}
+
+
+def _records(summaries, kept, order=None) -> list:
+    """One record per experiment (``name``, ``ok``, ``expected``, ``kept``, ``counts``:
+    ``{status: n}``), built and kept alike, in ``order`` (default: the registered one)."""
+    recs = [dict(name=s["experiment"], ok=int(s["ok"]), expected=s.get("expected"), kept=False,
+                 counts={c: int(s.get(k) or 0) for c, k in _KEYS.items()}) for s in summaries]
+    recs += [dict(name=n, ok=int(e.get("runs", 0)), expected=e.get("expected"), kept=True,
+                  counts={c: int(e.get(c) or 0) for c in _KEYS}) for n, e in (kept or {}).items()]
+    pos = {n: i for i, n in enumerate(order if order is not None else T.names())}
+    return sorted(recs, key=lambda r: pos.get(r["name"], len(pos)))
+
+
+def totals(summaries, kept=None) -> dict:
+    """``{status: n}`` over the built summaries and the kept pages' entries
+    (:func:`psbench.report.scales.kept`) whose experiments count (:func:`in_totals`)."""
     # experiments that re-decide other pages' claims (IN_TOTALS = False, e.g. the matrix of
     # readings) are listed but not counted again in the totals
-    counted = [s for s in summaries if in_totals(s["experiment"])]
-    tot = _tally([v for s in counted for v in verdicts_by.get(s["experiment"]) or []])
+    recs = [r for r in _records(summaries, kept) if in_totals(r["name"])]
+    return {c: sum(r["counts"][c] for r in recs) for c in STATUSES}
+
+
+def _ok_cell(r):
+    if r["expected"] and r["ok"] < r["expected"]:
+        return f"{r['ok']} of {r['expected']} (incomplete grid{'; kept' if r['kept'] else ''})"
+    return f"{r['ok']} (kept)" if r["kept"] else r["ok"]
+
+
+def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messages,
+                 empty, other_link, panels, deviations, kept=None, order=None) -> list:
+    """Blocks of ``index`` for one scale.
+
+    ``kept``: ``{experiment: entry}`` of the pages left from an earlier build
+    (:func:`psbench.report.scales.kept`): rows of the verdict table (marked kept) and
+    counted in the totals like built pages. ``order``: the experiments' order (default:
+    the registered one, :func:`psbench.report.tables.names`).
+    """
+    all_v = [v for vs in verdicts_by.values() for v in vs]
+    recs = _records(summaries, kept, order)
+    tot = totals(summaries, kept)
     blocks = [("h1", f"psbench thesis reproduction report (scale: {scale})"),
               ("p", size_text + (f" {other_link}" if other_link else ""))]
     if empty:
         blocks.append(("p", f"**THE RESULTS STORE IS EMPTY**: no runs were found, so every "
                             f"table below is empty and every verdict INCONCLUSIVE. Run e.g. "
                             f"`psbench +experiment=table5_3 scale={scale}` first."))
-    partial = [f"{s['experiment']} ({s['ok']} of {s['expected']} runs)" for s in summaries
-               if s.get("expected") and s["ok"] < s["expected"]]
+    partial = [f"{r['name']} ({r['ok']} of {r['expected']} runs{', kept' if r['kept'] else ''})"
+               for r in recs if r["expected"] and r["ok"] < r["expected"]]
     if partial:
         blocks.append(("p", f"**INCOMPLETE GRIDS: {', '.join(partial)}.** Their verdicts are "
                             f"PROVISIONAL (decided on the runs present) until their grids are "
@@ -221,32 +256,24 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
                ("totals", tot)]
     cols = ["experiment", "thesis item", "ok runs", V.SUPPORTED, V.NOT_SUPPORTED,
             V.INCONCLUSIVE] + ([V.PROVISIONAL] if tot.get(V.PROVISIONAL) else [])
-    keys = {V.SUPPORTED: "supported", V.NOT_SUPPORTED: "not_supported",
-            V.INCONCLUSIVE: "inconclusive", V.PROVISIONAL: "provisional"}
     per = pd.DataFrame([{
-        "experiment": Link(s["experiment"], f"{s['experiment']}.html"),
-        "thesis item": T.title(s["experiment"]),
-        "ok runs": s["ok"] if not s.get("expected") or s["ok"] >= s["expected"]
-        else f"{s['ok']} of {s['expected']} (incomplete grid)",
-        **{c: s.get(k, 0) for c, k in keys.items()}} for s in summaries], columns=cols)
+        "experiment": Link(r["name"], f"{r['name']}.html"), "thesis item": T.title(r["name"]),
+        "ok runs": _ok_cell(r), **{c: r["counts"][c] for c in cols[3:]}} for r in recs],
+        columns=cols)
     if len(per):
-        per.loc[len(per)] = ["total", "", sum(s["ok"] for s in summaries)] + \
+        per.loc[len(per)] = ["total", "", sum(r["ok"] for r in recs)] + \
             [tot.get(c, 0) for c in cols[3:]]
-    left = [s["experiment"] for s in summaries if not in_totals(s["experiment"])]
+    left = [r["name"] for r in recs if not in_totals(r["name"])]
     blocks.append(("table", per, "verdicts per experiment (click a name for its page)"
                    + (f"; the total leaves out {', '.join(left)}, which re-decides the "
                       "other pages' claims under alternative readings" if left else "")))
     if kept:
-        blocks += [("p", f"Pages kept from an earlier build ({len(kept)}): this store holds no "
-                         f"{scale}-scale run of them, so their pages were left as they were "
-                         f"(their numbers come from another store, and are not in the totals "
-                         f"above); `--force` replaces them."),
-                   ("table", pd.DataFrame([{
-                       "experiment": Link(n, f"{n}.html"), "thesis item": T.title(n),
-                       "ok runs": e.get("runs", 0), V.SUPPORTED: e.get(V.SUPPORTED, 0),
-                       V.NOT_SUPPORTED: e.get(V.NOT_SUPPORTED, 0),
-                       V.INCONCLUSIVE: e.get(V.INCONCLUSIVE, 0)} for n, e in kept.items()]),
-                    "pages kept from an earlier build")]
+        blocks.append(("p", f"Pages kept from an earlier build ({len(kept)}): "
+                            f"{', '.join(kept)}. This store holds no {scale}-scale run of "
+                            f"them, so their pages were left as they were; their rows above "
+                            f"(marked kept) and the totals use the runs and verdicts those "
+                            f"pages report, from another store. Their claims are listed on "
+                            f"their own pages, not below. `--force` replaces them."))
     blocks += [("h2", "Key findings"),
                ("p", "The main conclusion of each table and figure (the first claim on its "
                      "page) and what psbench's runs say about it; claims psbench does not "
@@ -267,6 +294,10 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
         "first run (UTC)": _ts(s["first"]), "last run (UTC)": _ts(s["last"]),
         "wall span (min)": f"{s['span'] / 60:.2f}"} for s in summaries])
     blocks.append(("table", tab))
+    if kept:
+        blocks.append(("p", f"The {len(kept)} kept page(s) were built from another store "
+                            f"and are not in this table; their runs are stated on their own "
+                            f"pages."))
     if deviations:
         blocks += [("h2", "Deviations from the thesis"),
                    ("table", pd.DataFrame(deviations, columns=["experiment", "deviation"]))]

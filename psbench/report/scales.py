@@ -7,12 +7,13 @@ holds one scale: the full-scale report in ``<out>/`` and the ci-scale one in
 
 - a folder holding a report of another scale is not overwritten;
 - a page that reports runs is not replaced by a "NO DATA" page: when the store lacks
-  that experiment at that scale, the page is kept as it is (:func:`kept`, listed apart
-  on the index) unless ``force``; a store with no run at that scale at all is refused.
+  that experiment at that scale, the page is kept as it is (:func:`kept`; the index and
+  the totals still count it, marked kept) unless ``force``; a store with no run at that
+  scale at all is refused.
 
-Every build leaves ``report.json`` (scale, runs and verdict counts per experiment) that
-:func:`existing` reads back; reports written before it existed are recognized from their
-pages.
+Every build leaves ``report.json`` (scale, runs, image size and verdict counts per
+experiment, kept pages included) that :func:`existing` reads back; reports written
+before it existed are recognized from their pages.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import pandas as pd
 from psbench._shared.checks import PsbenchError
 
 from . import tables as T
+from .pages import in_totals
 
 __all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
            "manifest", "kept"]
@@ -79,28 +81,27 @@ def existing(folder_) -> dict | None:
     if man.is_file():
         try:
             doc = json.loads(man.read_text())
-            exps = doc.get("experiments") or {}
-            with_data = {n for n, e in exps.items() if int(e.get("runs", 0)) > 0}
-            return {"scale": doc.get("scale"), "with_data": with_data,
-                    "runs": sum(int(e.get("runs", 0)) for e in exps.values())}
+            runs = {n: int(e.get("runs", 0)) for n, e in (doc.get("experiments") or {}).items()}
+            # a page written after the manifest (one experiment built alone) may hold runs
+            runs.update({n: _page_runs(d / f"{n}.md") for n, k in runs.items() if k == 0})
+            return {"scale": doc.get("scale"), "with_data": {n for n, k in runs.items() if k},
+                    "runs": sum(runs.values())}
         except (ValueError, TypeError, AttributeError):
             pass
     index = d / "index.md"
     if not index.is_file():
         return None
     m = re.search(r"\(scale: (\w+)\)", index.read_text(errors="replace")[:2000])
-    with_data, runs = set(), 0
-    for page in d.glob("*.md"):
-        if page.stem in ("index", "panels"):
-            continue
-        text = page.read_text(errors="replace")
-        if "NO DATA" in text:
-            continue
-        r = re.search(r"Runs: (\d+) ok", text)
-        if r and int(r.group(1)) > 0:
-            with_data.add(page.stem)
-            runs += int(r.group(1))
-    return {"scale": m.group(1) if m else None, "with_data": with_data, "runs": runs}
+    runs = {p.stem: _page_runs(p) for p in d.glob("*.md") if p.stem not in ("index", "panels")}
+    return {"scale": m.group(1) if m else None, "with_data": {n for n, k in runs.items() if k},
+            "runs": sum(runs.values())}
+
+
+def _page_runs(page: Path) -> int:
+    """Ok runs an experiment page reports (0: no page, or a NO DATA page)."""
+    text = page.read_text(errors="replace") if page.is_file() else ""
+    r = re.search(r"Runs: (\d+) ok", text)
+    return 0 if "NO DATA" in text or not r else int(r.group(1))
 
 
 def _runs_by_experiment(folder_) -> dict:
@@ -113,29 +114,61 @@ def _runs_by_experiment(folder_) -> dict:
 
 
 _TOTALS = re.compile(r"\*\*\d+ claims?: (\d+) SUPPORTED · (\d+) NOT SUPPORTED · "
-                     r"(\d+) INCONCLUSIVE")
+                     r"(\d+) INCONCLUSIVE(?: · (\d+) PROVISIONAL)?")
+_INCOMPLETE = re.compile(r"INCOMPLETE GRID: \d+ of (\d+) runs present")
 _VERDICT_LINE = re.compile(r"^(?:- \*\*|\| )(SUPPORTED|NOT SUPPORTED|INCONCLUSIVE)(?:\*\*| \|)",
                            re.MULTILINE)
 
 
+#: the page's second paragraph, e.g. "Experiment `x`, scale `full` (image size 512 x 512; ..."
+_SIZE = re.compile(r"^Experiment `[^`]+`, scale `\w+` \(image size (\d+) x \d+", re.MULTILINE)
+
+
+def _page_size(page: Path):
+    """Image size stated by an experiment page (None: no page, or no images)."""
+    text = page.read_text(errors="replace")[:20000] if page.is_file() else ""
+    m = _SIZE.search(text)
+    return int(m.group(1)) if m else None
+
+
 def _page_entry(page: Path) -> dict:
-    """Runs and verdict counts of a page written without a manifest entry."""
+    """Runs and verdict counts of a page written without a manifest entry (with
+    ``PROVISIONAL`` and ``expected`` when the page's grid is incomplete)."""
     text = page.read_text(errors="replace") if page.is_file() else ""
     r, t = re.search(r"Runs: (\d+) ok", text), _TOTALS.search(text)
     if t:
-        counts = [int(x) for x in t.groups()]
+        counts = [int(x) for x in t.groups()[:3]]
     else:                         # older pages: one "- **STATUS** — claim" line per verdict
         found = _VERDICT_LINE.findall(text)
         counts = [found.count(k) for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")]
-    return {"runs": int(r.group(1)) if r else 0,
-            **dict(zip(("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"), counts))}
+    out = {"runs": int(r.group(1)) if r else 0,
+           **dict(zip(("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE"), counts))}
+    if t and t.group(4):
+        out["PROVISIONAL"] = int(t.group(4))
+    if i := _INCOMPLETE.search(text):
+        out["expected"] = int(i.group(1))
+    return out
 
 
 def kept(folder_, runs: dict) -> dict:
-    """``{experiment: entry}``: pages of the report in ``folder_`` that hold runs the store
-    lacks (``runs[experiment] == 0``); the build leaves them as they are. ``entry`` holds
-    their runs and verdict counts (from the manifest, else read from the page) and
-    ``kept: True``."""
+    """Pages of an earlier build that this store cannot rebuild.
+
+    Parameters
+    ----------
+    folder_ : path
+        Folder of the report.
+    runs : dict
+        ``{experiment: ok runs}`` of the store at this scale; a page is kept when its
+        experiment is a key with 0 runs and the page holds runs.
+
+    Returns
+    -------
+    dict
+        ``{experiment: entry}`` in the order of ``runs``; ``entry`` holds the page's runs
+        and verdict counts (its manifest entry, else read from the page), ``size`` (the
+        manifest's, else the page's stated image size; None without images) and
+        ``kept: True``.
+    """
     old = existing(folder_)
     if not old:
         return {}
@@ -143,9 +176,18 @@ def kept(folder_, runs: dict) -> dict:
         exps = json.loads((Path(folder_) / MANIFEST).read_text()).get("experiments") or {}
     except (OSError, ValueError, TypeError, AttributeError):
         exps = {}
-    return {n: {**(exps.get(n) or _page_entry(Path(folder_) / f"{n}.md")), "kept": True}
-            for n in sorted(old["with_data"]) if n in runs and runs[n] == 0
-            and (Path(folder_) / f"{n}.md").is_file()}
+    out = {}
+    for n in runs:
+        page = Path(folder_) / f"{n}.md"
+        if runs[n] != 0 or n not in old["with_data"] or not page.is_file():
+            continue
+        stored = exps.get(n) or {}
+        # a manifest entry without runs predates the page (one experiment built alone)
+        entry = {**(stored if int(stored.get("runs", 0)) else _page_entry(page)), "kept": True}
+        if entry.get("size") is None:         # older manifests do not store it
+            entry["size"] = _page_size(page)
+        out[n] = entry
+    return out
 
 
 def _names(xs, k=4):
@@ -184,23 +226,46 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"kept: rerun the experiments to resume, or --force")
 
 
-def manifest(scale, results, summaries, generated, kept_=None) -> str:
-    """Text of ``report.json``: the scale and, per experiment, runs and verdict counts
-    (``kept_``: entries of the pages left from an earlier build, :func:`kept`)."""
+def manifest(scale, results, summaries, generated, kept_=None, order=None) -> str:
+    """Text of ``report.json``.
+
+    Parameters
+    ----------
+    scale, results, generated : str
+        The report's scale, its store (as shown) and the build time.
+    summaries : list of dict
+        The built experiments' summaries (``psbench.report.cli``).
+    kept_ : dict, optional
+        Entries of the pages left from an earlier build (:func:`kept`), stored as they
+        are; they count in the totals like built pages.
+    order : list of str, optional
+        Experiment order (default: the registered order, :func:`tables.names`).
+
+    Returns
+    -------
+    str
+        JSON: scale, store, time, verdict totals, the experiments in them, and per
+        experiment runs, image size and verdict counts.
+    """
     exps = {s["experiment"]: {"runs": int(s["ok"]), "failed": int(s["failed"]),
                               "SUPPORTED": int(s["supported"]),
                               "NOT SUPPORTED": int(s["not_supported"]),
                               "INCONCLUSIVE": int(s["inconclusive"]),
-                              "expected": s.get("expected")} for s in summaries}
+                              "expected": s.get("expected"),
+                              "size": int(s["size"]) if s.get("size") else None}
+            for s in summaries}
     for s in summaries:          # verdicts of an incomplete grid (absent when complete)
         if s.get("provisional"):
             exps[s["experiment"]]["PROVISIONAL"] = int(s["provisional"])
     exps.update(kept_ or {})
-    counted = [s["experiment"] for s in summaries if s.get("in_totals", True)]
-    tot = {k: sum(exps[n][k] for n in counted)
+    pos = {n: i for i, n in enumerate(order if order is not None else T.names())}
+    exps = dict(sorted(exps.items(), key=lambda kv: pos.get(kv[0], len(pos))))
+    built = {s["experiment"]: s.get("in_totals", True) for s in summaries}
+    counted = [n for n in exps if (built[n] if n in built else in_totals(n))]
+    tot = {k: sum(int(exps[n].get(k, 0)) for n in counted)
            for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")}
     if any(exps[n].get("PROVISIONAL") for n in counted):
-        tot["PROVISIONAL"] = sum(exps[n].get("PROVISIONAL", 0) for n in counted)
+        tot["PROVISIONAL"] = sum(int(exps[n].get("PROVISIONAL", 0)) for n in counted)
     return json.dumps({"scale": scale, "store": str(results), "generated": generated,
                        "verdicts": tot, "in_totals": counted, "experiments": exps},
                       indent=1) + "\n"

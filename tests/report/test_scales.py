@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
 
 import pandas as pd
@@ -94,12 +95,23 @@ def test_empty_store_never_replaces_a_report(full_report, tmp_path, capsys):
 def test_pages_with_data_are_not_blanked_unless_forced(full_report, tmp_path):
     part = _store(tmp_path / "part", table5_3_rows(size=512))     # fig5_12 missing
     before = _snapshot(full_report)
+    before_man = (full_report / "report.json").read_text()
     build(part, full_report, "full", log=lambda *a: None)
     # fig5_12's page, figures and table are kept byte for byte (not replaced by NO DATA)
     mine = lambda snap: {k: v for k, v in snap.items() if "fig5_12" in k}  # noqa: E731
     assert mine(before) and mine(_snapshot(full_report)) == mine(before)
     assert S.existing(full_report)["with_data"] == {"table5_3", "fig5_12"}
-    assert "Pages kept from an earlier build (1)" in (full_report / "index.md").read_text()
+    index = (full_report / "index.md").read_text()
+    assert "Pages kept from an earlier build (1)" in index
+    # the kept page is still a row of the verdict table, and its verdicts are in the totals
+    man = json.loads((full_report / "report.json").read_text())
+    assert man["experiments"]["fig5_12"]["kept"] is True
+    assert "| [fig5_12](fig5_12.html) |" in index and \
+        f"| {man['experiments']['fig5_12']['runs']} (kept) |" in index
+    assert man["in_totals"] == NAMES                      # registered order, kept included
+    assert man["verdicts"] == {k: sum(man["experiments"][n][k] for n in man["in_totals"])
+                               for k in ("SUPPORTED", "NOT SUPPORTED", "INCONCLUSIVE")}
+    assert man["verdicts"] == json.loads(before_man)["verdicts"]     # the same report
     build(part, full_report, "full", log=lambda *a: None, force=True)
     assert S.existing(full_report)["with_data"] == {"table5_3"}
     assert "NO DATA" in (full_report / "fig5_12.md").read_text()
