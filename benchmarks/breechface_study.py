@@ -41,11 +41,11 @@ def main():
     ap.add_argument("--out", default=None, help="write scores.csv and summary.csv here")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
-    st = br._options({"guns": [g for g in args.guns.split(",") if g] or None,
-                      "per_gun": args.per_gun or None,
-                      "finishes": args.finishes.split(","),
-                      "integrators": args.integrators.split(","), "meter": args.meter,
-                      "cache": args.cache or None, "jobs": args.jobs})
+    st = br.study_options({"guns": [g for g in args.guns.split(",") if g] or None,
+                           "per_gun": args.per_gun or None,
+                           "finishes": args.finishes.split(","),
+                           "integrators": args.integrators.split(","), "meter": args.meter,
+                           "cache": args.cache or None, "jobs": args.jobs})
     print(f"load average {os.getloadavg()}")
     names, heights, valid, guns, px = br.load_scans(st)
     cache = br.StudyCache(st["cache"])
@@ -55,17 +55,17 @@ def main():
                          long=CMC_DEFAULTS["long"]) for n, h, v in zip(names, heights, valid)}
     frames, per_scan = [], []
     t0 = time.perf_counter()
-    frames.append(pd.DataFrame(br._scores(scans, vm, gun, px, st, cache, method=bf.SCAN,
-                                          integrator="-", finish="-")))
+    frames.append(pd.DataFrame(br.run_scores(scans, vm, gun, px, st, cache, method=bf.SCAN,
+                                             integrator="-", finish="-")))
     for finish in st["finishes"]:
         for label in args.methods.split(","):
             maps, rows = br.method_maps(label, names, heights, valid, px, st, seed=0,
                                         finish=finish, cache=cache)
             per_scan += rows
             for integ, mm in maps.items():
-                frames.append(pd.DataFrame(br._scores(mm, vm, gun, px, st, cache,
-                                                      method=label, integrator=integ,
-                                                      finish=finish)))
+                frames.append(pd.DataFrame(br.run_scores(mm, vm, gun, px, st, cache,
+                                                         method=label, integrator=integ,
+                                                         finish=finish)))
     wall = time.perf_counter() - t0
     scores = pd.concat(frames, ignore_index=True)
     per = pd.DataFrame(per_scan)

@@ -59,7 +59,8 @@ from .identify import bandpass
 from .presets import FINISH_PRESETS
 from .study_cache import StudyCache
 
-__all__ = ["STUDY", "PARTS", "LABELS", "RECIPE", "run", "load_scans"]
+__all__ = ["STUDY", "PARTS", "LABELS", "RECIPE", "run", "load_scans", "method_maps",
+           "study_options", "run_scores"]
 
 #: method label of psbench's recipe (:func:`psbench.forensic.reconstruct_heights`)
 RECIPE = "recipe"
@@ -73,7 +74,10 @@ STUDY = {"folder": None, "guns": None, "per_gun": None, "crop": None,
          "seed": None, "jobs": 1}
 
 
-def _options(study):
+def study_options(study):
+    """:data:`STUDY` updated by ``study`` (a dict of overrides), checked: unknown keys,
+    finishes, methods, integrators, ``jobs``, ``cache`` and ``seed`` get one-line
+    errors."""
     st = dict(STUDY)
     extra = set(study or {}) - set(st)
     if extra:
@@ -161,7 +165,9 @@ def _cmc_options(st, px):
     return {"translation_tol": float(st["translation_tol_um"]) / px}
 
 
-def _scores(maps, valid, guns, px, st, cache=None, **head):
+def run_scores(maps, valid, guns, px, st, cache=None, **head):
+    """Every pair of ``maps`` compared as the study compares them (its CMC options,
+    ``jobs`` and cache), with progress on stderr; records with ``head``'s fields first."""
     tag = "/".join(str(v) for v in head.values())
     seen = [(time.perf_counter(), 0)]
 
@@ -219,7 +225,7 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
     if part == "method" and label not in LABELS:
         raise PsbenchError(f"part='method' needs label= one of {', '.join(LABELS)}, "
                            f"got {label!r}")
-    st = _options(study)
+    st = study_options(study)
     for name, v, known, key in (("finish", finish, FINISH_PRESETS, "finishes"),
                                 ("integrator", integrator, ("poisson", "bilateral"),
                                  "integrators")):
@@ -244,7 +250,7 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
         maps = {n: bandpass(np.where(v, h, 0.0), v, pixel_size=px,
                             short=CMC_DEFAULTS["short"], long=CMC_DEFAULTS["long"])
                 for n, h, v in zip(names, heights, valid)}
-        scores = _scores(maps, vmask, gun, px, st, cache, method=bf.SCAN, integrator="-",
+        scores = run_scores(maps, vmask, gun, px, st, cache, method=bf.SCAN, integrator="-",
                          finish="-")
         _export(cache)
         return {**head, "scores": scores}
@@ -256,7 +262,7 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
                                  finish=finish, cache=cache)
         per_scan += rows
         for integ, mm in maps.items():
-            scores += _scores(mm, vmask, gun, px, st, cache, method=label,
+            scores += run_scores(mm, vmask, gun, px, st, cache, method=label,
                               integrator=integ, finish=finish)
     _export(cache)
     return {**head, "per_scan": per_scan, "scores": scores}
