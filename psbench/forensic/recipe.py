@@ -40,8 +40,8 @@ Defaults and their basis:
 Checked afterwards on all 95 shared scans (experiment ``breechface``, brass, Poisson,
 4,465 pairs): AUC 1.000 (CMC and CCFmax) as for the scans, 0 false positives and 0
 false negatives at 6 cells (scans: 0 and 0), CMC separation 13 (scans 14), CCF
-separation 0.530 (scans 0.499; least squares 0.505, Th-Hi-Re-Sh 0.429). None of the
-defaults above was changed for it.
+separation 0.530 (scans 0.499; least squares 0.505, WPS 0.502, robust 0.463,
+Th-Hi-Re-Sh 0.429). None of the defaults above was changed for it.
 """
 from __future__ import annotations
 
