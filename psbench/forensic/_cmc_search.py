@@ -31,12 +31,18 @@ def stacked(z, m):
     return np.ascontiguousarray(np.dstack([z, m]).astype(np.float32))
 
 
+def _matrix(theta, cb, ca, shift=(0.0, 0.0)):
+    """(2, 3) affine: rotation by ``theta`` about ``cb``, ``cb`` put on ``ca`` + shift."""
+    M = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), float(theta), 1.0)
+    M[:, 2] += (ca[0] - cb[0] + shift[0], ca[1] - cb[1] + shift[1])
+    return M
+
+
 def rotated(zm, theta, cb, ca, shape, shift=(0.0, 0.0)):
     """Target :func:`stacked` ``zm`` rotated by ``theta`` about ``cb``, ``cb`` put on
     ``ca`` (+ shift), in a frame of ``shape``; values 0 and mask False where there is
     no data. Returns z, mask, M (the (2, 3) affine)."""
-    M = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), float(theta), 1.0)
-    M[:, 2] += (ca[0] - cb[0] + shift[0], ca[1] - cb[1] + shift[1])
+    M = _matrix(theta, cb, ca, shift)
     size = (shape[1], shape[0])
     out = cv2.warpAffine(zm, M, size, flags=cv2.INTER_LINEAR, borderValue=(0.0, 0.0))
     mr = out[..., 1] > 0.999   # only pixels whose four neighbours all carry data
@@ -101,8 +107,7 @@ def patches(zm, theta, cb, ca, rows, cols, shape):
     """Regions of ``shape`` at (``rows``, ``cols``) of the target rotated as
     :func:`rotated` would rotate it into its whole frame, warped one region at a time:
     the refinement needs a few small regions per angle, not the whole frame."""
-    M = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), float(theta), 1.0)
-    M[:, 2] += (ca[0] - cb[0], ca[1] - cb[1])
+    M = _matrix(theta, cb, ca)
     out = np.empty((len(rows),) + tuple(shape) + (2,), np.float32)
     size = (shape[1], shape[0])
     for i, (r, c) in enumerate(zip(rows, cols)):     # a few regions per angle
@@ -127,8 +132,7 @@ def search(cells, idx, rb, rm, cy, cx, hy, hx, limit, workers=1):
     th, tw = ch + 2 * hy, cw + 2 * hx
     fh, fw = sfft.next_fast_len(th, real=True), sfft.next_fast_len(tw, real=True)
     FA, FM = cells.spectra(fh, fw, workers)
-    every = len(idx) == len(FA)
-    if not every:
+    if len(idx) != len(FA):          # the refinement: some cells only
         FA, FM = FA[idx], FM[idx]
     n = len(idx)
     pad = np.zeros((n, fh, fw), np.float32)
