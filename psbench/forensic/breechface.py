@@ -29,7 +29,7 @@ from ..surfaces import surface_from_height
 from ._cmc_search import SEARCH_REVISION
 from .cmc import CMC_DEFAULTS, CMC_THRESHOLD, cmc
 from .identify import bandpass
-from .pipeline import INTEGRATORS, auc, solve_kwargs
+from .pipeline import INTEGRATORS, auc, solve_kwargs, warm_up_integrators
 from .presets import ACQUISITION, acquire
 
 __all__ = ["SCAN", "STUDY_METHODS", "render_scan", "reconstruct_scan", "score_pairs",
@@ -117,6 +117,7 @@ def reconstruct_scan(height_um, valid, *, pixel_size, methods=STUDY_METHODS,
                      "height_error_um": float(np.abs(f - ref)[valid].mean()),
                      "solve_s": t_solve, "integrate_s": t_int})
 
+    warm_up_integrators(integrators)
     for name in methods:
         t0 = time.perf_counter()
         res = solve(acq.images, acq.lights, object_mask=valid,

@@ -61,3 +61,19 @@ def test_unknown_names():
         P.reconstruct(c, integrators=("bogus",))
     with pytest.raises(PsbenchError, match="region"):
         P.reconstruct(c, compare=("bogus",))
+
+
+def test_integrators_are_warmed_once_per_process_before_timing(monkeypatch):
+    # the first masked Poisson solve of a process loads compiled kernels; the warm-up
+    # must run it (on the CG path: a disc larger than SMALL_COMPONENT) once, untimed
+    from psbench.integrate.poisson import SMALL_COMPONENT
+
+    calls = []
+    monkeypatch.setattr(P, "_WARM", set())
+    monkeypatch.setitem(P.INTEGRATORS, "poisson",
+                        lambda n, m: calls.append((n.shape, int(m.sum()))))
+    P.warm_up_integrators(["poisson"])
+    P.warm_up_integrators(["poisson"])
+    assert len(calls) == 1
+    shape, area = calls[0]
+    assert shape[2] == 3 and area > SMALL_COMPONENT
