@@ -114,6 +114,8 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         s["in_totals"] = G.in_totals(name)
         summaries.append(s)
         verdicts_by[name] = vs
+    for name in kept:               # a kept page's claims, as it states them
+        verdicts_by[name] = S.page_verdicts(out / f"{name}.md", name)
     panel_files = []
     if panels:
         from .panels import build_panels

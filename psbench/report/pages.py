@@ -178,16 +178,15 @@ def experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, figs,
     return blocks
 
 
-def _findings(summaries, verdicts_by) -> pd.DataFrame:
+def _findings(names, verdicts_by) -> pd.DataFrame:
     order = {V.NOT_SUPPORTED: 0, V.SUPPORTED: 1, V.INCONCLUSIVE: 2}
     recs = []
-    for s in summaries:
-        vs = verdicts_by.get(s["experiment"]) or []
+    for name in names:
+        vs = verdicts_by.get(name) or []
         if vs:
             v = vs[0]
             recs.append((order.get(v.status, 3), len(recs),
-                         {"status": v.status, "experiment": Link(s["experiment"],
-                                                                  f"{s['experiment']}.html"),
+                         {"status": v.status, "experiment": Link(name, f"{name}.html"),
                           "claim": v.claim, "psbench's numbers": v.detail}))
     recs.sort(key=lambda r: r[:2])
     return pd.DataFrame([r[2] for r in recs],
@@ -231,11 +230,12 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
 
     ``kept``: ``{experiment: entry}`` of the pages left from an earlier build
     (:func:`psbench.report.scales.kept`): rows of the verdict table (marked kept) and
-    counted in the totals like built pages. ``order``: the experiments' order (default:
-    the registered one, :func:`psbench.report.tables.names`).
+    counted in the totals like built pages; ``verdicts_by`` holds their claims as their
+    pages state them (:func:`psbench.report.scales.page_verdicts`). ``order``: the
+    experiments' order (default: the registered one, :func:`psbench.report.tables.names`).
     """
-    all_v = [v for vs in verdicts_by.values() for v in vs]
     recs = _records(summaries, kept, order)
+    all_v = [v for r in recs for v in verdicts_by.get(r["name"]) or []]
     tot = totals(summaries, kept)
     blocks = [("h1", f"psbench thesis reproduction report (scale: {scale})"),
               ("p", size_text + (f" {other_link}" if other_link else ""))]
@@ -272,13 +272,13 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
                             f"{', '.join(kept)}. This store holds no {scale}-scale run of "
                             f"them, so their pages were left as they were; their rows above "
                             f"(marked kept) and the totals use the runs and verdicts those "
-                            f"pages report, from another store. Their claims are listed on "
-                            f"their own pages, not below. `--force` replaces them."))
+                            f"pages report, from another store; so do their claims below, "
+                            f"as their pages state them. `--force` replaces them."))
     blocks += [("h2", "Key findings"),
                ("p", "The main conclusion of each table and figure (the first claim on its "
                      "page) and what psbench's runs say about it; claims psbench does not "
                      "support come first. Every claim is listed under All verdicts below."),
-               ("table", _findings(summaries, verdicts_by))]
+               ("table", _findings([r["name"] for r in recs], verdicts_by))]
     if messages:
         blocks += [("h2", "Warnings"), ("list", messages)]
     if panels:

@@ -29,7 +29,7 @@ from . import tables as T
 from .pages import in_totals
 
 __all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
-           "manifest", "kept"]
+           "manifest", "kept", "page_verdicts"]
 
 SCALES = ("full", "ci")
 MANIFEST = "report.json"
@@ -147,6 +147,39 @@ def _page_entry(page: Path) -> dict:
         out["PROVISIONAL"] = int(t.group(4))
     if i := _INCOMPLETE.search(text):
         out["expected"] = int(i.group(1))
+    return out
+
+
+_CELL = re.compile(r"(?<!\\)\|")
+_QUOTE = " (thesis, "
+
+
+def page_verdicts(page, experiment) -> list:
+    """The thesis verdicts an experiment page states (its table under "Verdicts on the
+    thesis's conclusions", read from the page's Markdown) as
+    :class:`~psbench.report.verdicts.Verdict`: a kept page's claims for the index's Key
+    findings and All verdicts. ``[]`` when the page has no such table."""
+    from .verdicts import Verdict
+
+    text = Path(page).read_text(errors="replace") if Path(page).is_file() else ""
+    _, sep, rest = text.partition("## Verdicts on the thesis's conclusions")
+    out = []
+    if not sep:
+        return out
+    for line in rest.splitlines():
+        if line.startswith("#"):                       # the next section
+            break
+        if not line.startswith("| ") or line.startswith("| status |"):
+            continue
+        cells = [c.strip().replace("\\|", "|") for c in _CELL.split(line)[1:-1]]
+        if len(cells) != 3:
+            continue
+        status, claim, detail = cells
+        quote = ""
+        cut = claim.rfind(_QUOTE)
+        if cut > 0 and claim.endswith(")"):            # "claim (thesis, <quote>)"
+            claim, quote = claim[:cut], claim[cut + len(_QUOTE):-1]
+        out.append(Verdict(experiment, claim, status, detail, quote))
     return out
 
 

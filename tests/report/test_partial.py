@@ -84,6 +84,14 @@ def test_ci_report_of_a_fresh_store_keeps_the_pages_it_lacks(tmp_path, capsys):
            f"{a['INCONCLUSIVE']} |" in rows[0]
     assert f"| total |  | {first['runs'] + n} | {both['SUPPORTED']} |" in index
     assert "image sizes 32 x 32, 40 x 40;" in index           # fig5_12's and the kept page's
+    # the kept page's claims are in Key findings (its first) and All verdicts (all)
+    claims = S.page_verdicts(out / "ci" / "table5_3.md", "table5_3")
+    assert len(claims) == sum(a.values()) > 0
+    findings = index.split("## Key findings")[1].split("\n## ")[0]
+    assert f"| {claims[0].status} | [table5_3](table5_3.html) | {claims[0].claim} |" \
+        in findings.replace("\\|", "|")
+    listed = index.split("## All verdicts")[1]
+    assert sum(ln.startswith("| [table5_3]") for ln in listed.splitlines()) == len(claims)
     man = json.loads((out / "ci" / "report.json").read_text())
     assert man["experiments"]["table5_3"]["kept"] is True
     assert man["experiments"]["table5_3"]["size"] == 40
@@ -191,3 +199,18 @@ def test_an_incomplete_grid_is_said_at_the_top_and_its_verdicts_are_provisional(
     page = (out / "ci" / "fig5_12.md").read_text()
     assert "INCOMPLETE" not in page and "PROVISIONAL" not in page
     assert "| SUPPORTED |" in page or "| NOT SUPPORTED |" in page
+
+
+def test_page_verdicts_reads_back_the_verdicts_a_page_states(tmp_path):
+    from psbench.io.html import write_page
+    from psbench.report.verdicts import Verdict
+
+    vs = [Verdict("x", "A beats B | C (2 of 3)", "SUPPORTED", "gap 0.3 deg | margin 0.1",
+                  'line 12: "A is best (clearly)"'),
+          Verdict("x", "no quote here", "NOT SUPPORTED", "n/a"),
+          Verdict("x", "own question", "INCONCLUSIVE", "-", thesis=False)]
+    write_page(tmp_path, "x", [("h1", "x"), ("h2", "Verdicts on the thesis's conclusions"),
+                               ("verdicts", vs[:2]), ("h2", "psbench's own questions"),
+                               ("own_verdicts", vs[2:])], "x")
+    assert S.page_verdicts(tmp_path / "x.md", "x") == vs[:2]
+    assert S.page_verdicts(tmp_path / "missing.md", "x") == []
