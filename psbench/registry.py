@@ -203,11 +203,17 @@ class Analysis:
     The harness passes the run parameters ``func``'s signature names (``surface``,
     ``lights``, ``seed``, ...; ``zeniths=[zenith]`` for a plural name) plus the run's
     ``args``.
+
+    ``operational`` names keys of the run's ``study`` mapping that choose how the result
+    is computed, not what it is (a cache folder, a table of earlier results, a process
+    count): they are left out of the run's id (:func:`psbench.harness.params.run_id`), so
+    moving a cache leaves the stored runs current.
     """
 
     name: str
     func: Callable
     help: str = ""
+    operational: tuple = ()
 
 
 @dataclass(frozen=True)

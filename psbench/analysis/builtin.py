@@ -502,9 +502,14 @@ def breechface(part="method", label=None, *, finish=None, integrator=None, seed=
 
 
 # ----------------------------------------------------------------------------- registry
+#: ``study`` keys of an analysis that say how it is computed (not part of a run's id)
+_OPERATIONAL = {"breechface": ("cache", "pairs_table", "jobs")}
+
+
 def _spec(func):
     return Analysis(name=func.__name__, func=func,
-                    help=(func.__doc__ or "").strip().split("\n")[0])
+                    help=(func.__doc__ or "").strip().split("\n")[0],
+                    operational=_OPERATIONAL.get(func.__name__, ()))
 
 
 #: psbench's own ``kind=analysis`` computations, registered like a plug-in's (the

@@ -33,11 +33,12 @@ translation tolerance is cmcR's 20 px at its 6.25 µm working resolution, i.e.
 
 Long studies: ``study["cache"]`` (a folder; the full scale's is
 ``$PSBENCH_CACHE/breechface``) keeps every finished scan map and every reference scan's
-comparisons (:mod:`~.study_cache`), so a stopped run resumes; ``study["seed"]`` (a
-Parquet table; the full scale's is the committed ``reports/data/breechface_pairs.parquet``)
-holds the comparisons of earlier checkouts, keyed by the digests of the maps compared:
-a run reads the pairs whose maps are bit-identical to the seed's instead of comparing
-them again, and adds its own to it when it ends; ``study["jobs"]`` shares
+comparisons (:mod:`~.study_cache`), so a stopped run resumes; ``study["pairs_table"]``
+(a Parquet table; the full scale's is the committed
+``reports/data/breechface_pairs.parquet``) holds the comparisons of earlier checkouts,
+keyed by the digests of the maps compared: a run reads the pairs whose maps are
+bit-identical to the table's instead of comparing them again, and adds its own to it
+when it ends; ``study["jobs"]`` shares
 the comparisons of one run among worker processes (default 1: the harness already runs
 one run per core). Progress (scans reconstructed, pairs compared, minutes left) goes to
 stderr.
@@ -71,12 +72,12 @@ PARTS = ("method", "scan", "panels")
 STUDY = {"folder": None, "guns": None, "per_gun": None, "crop": None,
          "finishes": ["brass", "nickel"], "integrators": ["poisson", "bilateral"],
          "meter": "frame", "translation_tol_um": 125.0, "methods": None, "cache": None,
-         "seed": None, "jobs": 1}
+         "pairs_table": None, "jobs": 1}
 
 
 def study_options(study):
     """:data:`STUDY` updated by ``study`` (a dict of overrides), checked: unknown keys,
-    finishes, methods, integrators, ``jobs``, ``cache`` and ``seed`` get one-line
+    finishes, methods, integrators, ``jobs``, ``cache`` and ``pairs_table`` get one-line
     errors."""
     st = dict(STUDY)
     extra = set(study or {}) - set(st)
@@ -91,7 +92,7 @@ def study_options(study):
         if m not in LABELS:
             raise PsbenchError(f"study methods: {m!r} is not known; valid: {', '.join(LABELS)}")
     check_workers(st["jobs"], "study jobs")
-    for key, what in (("cache", "a folder path"), ("seed", "a Parquet file path")):
+    for key, what in (("cache", "a folder path"), ("pairs_table", "a Parquet file path")):
         if st[key] is not None and not isinstance(st[key], (str, os.PathLike)):
             raise PsbenchError(f"study {key}: must be {what} or null, got {st[key]!r}")
     for i in st["integrators"]:
@@ -212,7 +213,8 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
         :func:`~.breechface.render_scan`), ``translation_tol_um``, ``methods`` (the
         labels this scale runs; a ``method`` run of another label returns
         ``{"skipped": True}`` at once), ``cache`` (folder of the study cache, or None),
-        ``seed`` (Parquet table of earlier comparisons, read and extended; or None)
+        ``pairs_table`` (Parquet table of earlier comparisons, read and extended; or
+        None)
         and ``jobs`` (worker processes for the comparisons; -1: one per core).
 
     Returns
@@ -241,7 +243,7 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
     if part == "method" and st["methods"] is not None and label not in st["methods"]:
         return {"part": part, "label": label, "seed": int(seed), "skipped": True}
     names, heights, valid, guns, px = load_scans(st)
-    cache = StudyCache(st["cache"], st["seed"])
+    cache = StudyCache(st["cache"], st["pairs_table"])
     gun = dict(zip(names, guns))
     vmask = dict(zip(names, valid))
     head = {"part": part, "label": label, "seed": int(seed), "pixel_size": px,
@@ -269,9 +271,9 @@ def run(part="method", label=None, *, finish=None, integrator=None, seed=0, stud
 
 
 def _export(cache):
-    """The run's comparisons into the study's seed table (when it has one)."""
-    if cache.seed is not None and cache.root is not None:
-        _say(f"{cache.export()} comparisons in the seed {cache.seed}")
+    """The run's comparisons into the study's pairs table (when it has one)."""
+    if cache.table is not None and cache.root is not None:
+        _say(f"{cache.export()} comparisons in the pairs table {cache.table}")
 
 
 def method_maps(label, names, heights, valid, px, st, *, seed, finish, cache=None):

@@ -23,13 +23,13 @@ Files are written atomically. The cache does not know psbench's version: delete 
 changing the code that renders, reconstructs or compares (the comparison's options
 include the CMC search's revision, :data:`~._cmc_search.SEARCH_REVISION`).
 
-``seed`` (a Parquet file) carries comparisons from one checkout to another: a table of
+The pairs ``table`` (a Parquet file) carries comparisons from one checkout to another:
 every comparison (``options, ref, target`` digests and the CMC row) that
 :meth:`StudyCache.pairs` reads before comparing, and that :meth:`StudyCache.export`
-brings up to date with the folder. The full-scale study's seed is committed
+brings up to date with the folder. The full-scale study's pairs table is committed
 (``reports/data/breechface_pairs.parquet``): a fresh checkout re-renders and
 re-reconstructs every map (minutes per run) and compares only the pairs whose maps
-differ from the ones the seed was made from (other code, or a machine whose arithmetic
+differ from the ones the table was made from (other code, or a machine whose arithmetic
 differs), instead of comparing all of them again (hours per run). Being keyed by the
 maps' own bytes, it cannot hand a changed map an old score.
 """
@@ -45,10 +45,10 @@ import numpy as np
 
 from .._shared.files import atomic_write
 
-__all__ = ["StudyCache", "digest", "SEED_COLUMNS"]
+__all__ = ["StudyCache", "digest", "TABLE_COLUMNS"]
 
-#: columns of a seed table: the digests, then the CMC row of :func:`~.breechface.score_pairs`
-SEED_COLUMNS = ("options", "ref", "target", "count", "cells", "ccf", "dx", "dy", "theta",
+#: columns of a pairs table: the digests, then the CMC row of :func:`~.breechface.score_pairs`
+TABLE_COLUMNS = ("options", "ref", "target", "count", "cells", "ccf", "dx", "dy", "theta",
                 "seconds")
 
 
@@ -68,28 +68,28 @@ def digest(*parts) -> str:
 
 class StudyCache:
     """The cache folder ``root`` (None: nothing is cached, every piece is computed) and
-    the optional ``seed`` table of earlier comparisons (read-only until :meth:`export`)."""
+    the optional pairs ``table`` of earlier comparisons (read-only until :meth:`export`)."""
 
-    def __init__(self, root=None, seed=None):
+    def __init__(self, root=None, table=None):
         self.root = Path(root).expanduser().resolve() if root else None
-        self.seed = Path(seed).expanduser().resolve() if seed else None
-        self._seeded = None
+        self.table = Path(table).expanduser().resolve() if table else None
+        self._known = None
 
-    def __getstate__(self):             # worker processes load the seed themselves
-        return {**self.__dict__, "_seeded": None}
+    def __getstate__(self):             # worker processes load the table themselves
+        return {**self.__dict__, "_known": None}
 
-    def _from_seed(self, options, ref):
-        """{target digest: row} of the seed for this options digest and reference."""
-        if self.seed is None:
+    def _from_table(self, options, ref):
+        """{target digest: row} of the table for this options digest and reference."""
+        if self.table is None:
             return {}
-        if self._seeded is None:
-            self._seeded = {}
-            t = _read_seed(self.seed)
-            fields = list(SEED_COLUMNS[3:])
+        if self._known is None:
+            self._known = {}
+            t = _read_table(self.table)
+            fields = list(TABLE_COLUMNS[3:])
             for (o, r), g in t.groupby(["options", "ref"], sort=False):
                 rows = g[fields].to_dict("records")
-                self._seeded[(o, r)] = dict(zip(g["target"], rows))
-        return self._seeded.get((options, ref), {})
+                self._known[(o, r)] = dict(zip(g["target"], rows))
+        return self._known.get((options, ref), {})
 
     def maps(self, keys, compute):
         """Maps stored under ``keys``, or ``compute()``'s (then stored under them).
@@ -120,13 +120,13 @@ class StudyCache:
         ``compute(missing)`` returns the rows (dicts) of the targets not yet stored, in
         order; they are stored with the others. Returns the rows of ``targets`` in order.
         """
-        if self.root is None and self.seed is None:
+        if self.root is None and self.table is None:
             return compute(list(targets))
         opt = digest(options)
         path = self.root / "pairs" / opt / f"{ref}.json" if self.root else None
         have = json.loads(path.read_text()) if path and path.is_file() else {}
-        seeded = self._from_seed(opt, ref)
-        have.update({t: seeded[t] for t in targets if t not in have and t in seeded})
+        known = self._from_table(opt, ref)
+        have.update({t: known[t] for t in targets if t not in have and t in known})
         missing = [t for t in targets if t not in have]
         if missing:
             have.update(zip(missing, compute(missing)))
@@ -135,20 +135,20 @@ class StudyCache:
         return [have[t] for t in targets]
 
     def export(self):
-        """Merge every comparison of the folder into the seed file (atomically, under a
-        lock: concurrent runs may export at once). Returns the seed's row count."""
+        """Merge every comparison of the folder into the pairs table (atomically, under a
+        lock: concurrent runs may export at once). Returns the table's row count."""
         import pandas as pd
 
-        if self.seed is None or self.root is None:
+        if self.table is None or self.root is None:
             return 0
         rows = []
         for f in sorted((self.root / "pairs").glob("*/*.json")):
             for target, r in json.loads(f.read_text()).items():
                 rows.append({"options": f.parent.name, "ref": f.stem, "target": target,
-                             **{k: r.get(k) for k in SEED_COLUMNS[3:]}})
-        with _locked(self.seed):
-            old = _read_seed(self.seed)
-            new = pd.DataFrame(rows, columns=list(SEED_COLUMNS))
+                             **{k: r.get(k) for k in TABLE_COLUMNS[3:]}})
+        with _locked(self.table):
+            old = _read_table(self.table)
+            new = pd.DataFrame(rows, columns=list(TABLE_COLUMNS))
             t = pd.concat([old, new], ignore_index=True) if len(old) else new
             t = (t.drop_duplicates(["options", "ref", "target"], keep="last")
                   .sort_values(["options", "ref", "target"], kind="stable")
@@ -156,27 +156,28 @@ class StudyCache:
             t = t.astype({"count": "int32", "cells": "int32"})
             buf = io.BytesIO()
             t.to_parquet(buf, index=False, compression="zstd")
-            atomic_write(self.seed, buf.getvalue())
-        self._seeded = None
+            atomic_write(self.table, buf.getvalue())
+        self._known = None
         return len(t)
 
 
-def _read_seed(path):
+def _read_table(path):
     import pandas as pd
 
     from .._shared.checks import PsbenchError
 
     if not Path(path).is_file():
-        return pd.DataFrame(columns=list(SEED_COLUMNS))
+        return pd.DataFrame(columns=list(TABLE_COLUMNS))
     try:
         t = pd.read_parquet(path)
     except Exception as e:                      # not Parquet, truncated, ...
-        raise PsbenchError(f"study seed {path}: not a readable Parquet table ({e})") from None
-    missing = [c for c in SEED_COLUMNS if c not in t.columns]
+        raise PsbenchError(f"study pairs_table {path}: not a readable Parquet table "
+                           f"({e})") from None
+    missing = [c for c in TABLE_COLUMNS if c not in t.columns]
     if missing:
-        raise PsbenchError(f"study seed {path}: missing columns {missing}; expected "
-                           f"{', '.join(SEED_COLUMNS)}")
-    return t[list(SEED_COLUMNS)]
+        raise PsbenchError(f"study pairs_table {path}: missing columns {missing}; expected "
+                           f"{', '.join(TABLE_COLUMNS)}")
+    return t[list(TABLE_COLUMNS)]
 
 
 @contextlib.contextmanager

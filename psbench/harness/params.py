@@ -105,15 +105,31 @@ def run_id(params: dict, *, root=None) -> str:
     ``root`` is the results store the run belongs to: a path inside it (a surface file an
     experiment makes in its store, a capture folder under it) is hashed relative to it, so
     a store that is moved or copied keeps its run ids.
+
+    The ``study`` keys an analysis declares operational
+    (:attr:`psbench.registry.Analysis.operational`: a cache folder, a process count) are
+    left out: they change how a run is computed, not what it computes.
     """
-    p = {k: v for k, v in params.items()
-         if not (k in _UNLESS_DEFAULT and v == _UNLESS_DEFAULT[k])}
+    p = dict(params)
+    if isinstance(p.get("study"), dict) and p.get("analysis"):
+        drop = _operational(p["analysis"])
+        if drop:
+            p["study"] = {k: v for k, v in p["study"].items() if k not in drop}
+    p = {k: v for k, v in p.items() if not (k in _UNLESS_DEFAULT and v == _UNLESS_DEFAULT[k])}
     if root is not None:
         inside = str(Path(root).expanduser().resolve()) + os.sep
         p = {k: STORE_TOKEN + os.sep + v[len(inside):]
              if isinstance(v, str) and v.startswith(inside) else v for k, v in p.items()}
     blob = json.dumps(p, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _operational(analysis) -> tuple:
+    """``study`` keys the registered analysis declares operational (none if unknown)."""
+    from .. import registry
+
+    spec = registry.analyses().get(analysis)
+    return tuple(getattr(spec, "operational", ()) or ())
 
 
 def scene_key(params: dict) -> tuple:

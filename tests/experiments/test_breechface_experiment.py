@@ -27,10 +27,28 @@ def test_grid_runs_every_label_the_scan_and_the_panels():
         "panels", "scan"]
     # a full-scale run takes hours: it keeps what it finished, so a stopped one resumes
     assert {r["study"]["cache"].endswith("/breechface") for r in runs} == {True}
-    # and reads the comparisons of earlier checkouts from the committed seed
-    assert {r["study"]["seed"] for r in runs} == {"reports/data/breechface_pairs.parquet"}
+    # and reads the comparisons of earlier checkouts from the committed pairs table
+    assert {r["study"]["pairs_table"] for r in runs} == {"reports/data/breechface_pairs.parquet"}
     ci = expand(load("breechface"), "ci")
     assert {tuple(r["study"]["methods"]) for r in ci} == {("None", "Th-Hi-Re-Sh", "recipe")}
+
+
+def test_operational_study_keys_are_not_part_of_a_runs_identity():
+    from psbench.harness.params import run_id
+
+    run = expand(load("breechface"), "full")[0]
+    moved = {**run, "study": {**run["study"], "cache": "/elsewhere/cache",
+                              "pairs_table": "other.parquet", "jobs": 2}}
+    assert run_id(moved) == run_id(run)
+    bare = {**run, "study": {k: v for k, v in run["study"].items()
+                             if k not in ("cache", "pairs_table", "jobs")}}
+    assert run_id(bare) == run_id(run)
+    # what the study computes is part of it
+    other = {**run, "study": {**run["study"], "finishes": ["brass"]}}
+    assert run_id(other) != run_id(run)
+    # another analysis declares none: its study keys all count
+    ch7 = {**run, "analysis": "forensic", "study": {**run["study"], "cache": "/x"}}
+    assert run_id(ch7) != run_id({**ch7, "study": run["study"]})
 
 
 @pytest.mark.parametrize("kwargs, word", [
@@ -45,7 +63,7 @@ def test_grid_runs_every_label_the_scan_and_the_panels():
     ({"part": "method", "label": "None", "integrator": "spline"}, "integrator"),
     ({"part": "scan", "finish": "brass"}, "finish"),
     ({"part": "scan", "study": {"cache": 5}}, "cache"),
-    ({"part": "scan", "study": {"seed": 5}}, "seed"),
+    ({"part": "scan", "study": {"pairs_table": 5}}, "pairs_table"),
 ])
 def test_bad_input(kwargs, word):
     with pytest.raises(PsbenchError, match=word):

@@ -122,40 +122,40 @@ def test_bad_jobs_is_named(jobs):
         bf.score_pairs(maps, valid, guns, pixel_size=6.25, jobs=jobs, **OPTS)
 
 
-def test_a_seed_carries_comparisons_to_another_cache_folder(tmp_path):
+def test_a_pairs_table_carries_comparisons_to_another_cache_folder(tmp_path):
     maps, valid, guns = _fields(4)
     cols = ["a", "b", "same_gun", "count", "cells", "ccf", "dx", "dy", "theta"]
-    seed = tmp_path / "seed.parquet"
-    first = StudyCache(tmp_path / "one", seed)
+    pairs = tmp_path / "pairs.parquet"
+    first = StudyCache(tmp_path / "one", pairs)
     plain = bf.score_pairs(maps, valid, guns, pixel_size=6.25, cache=first, **OPTS)
     assert first.export() == 6
     assert first.export() == 6                     # merging again adds no duplicates
-    table = pd.read_parquet(seed)
+    table = pd.read_parquet(pairs)
     assert len(table) == 6 and table["count"].tolist() != [-7] * 6
-    # poison the seed: a fresh folder (another checkout) must read it, not compare again
+    # poison the table: a fresh folder (another checkout) must read it, not compare again
     table["count"] = -7
-    table.to_parquet(seed, index=False)
-    fresh = StudyCache(tmp_path / "two", seed)
+    table.to_parquet(pairs, index=False)
+    fresh = StudyCache(tmp_path / "two", pairs)
     again = bf.score_pairs(maps, valid, guns, pixel_size=6.25, cache=fresh, **OPTS)
     assert (again["count"] == -7).all()
     pd.testing.assert_frame_equal(plain[cols[:4]].assign(count=-7), again[cols[:4]])
-    # a map that differs by one value misses the seed: its pairs are compared afresh
+    # a map that differs by one value misses the table: its pairs are compared afresh
     maps["s3"] = maps["s3"].copy()
     maps["s3"][48, 48] += 1e-3
     changed = bf.score_pairs(maps, valid, guns, pixel_size=6.25,
-                             cache=StudyCache(tmp_path / "three", seed), **OPTS)
+                             cache=StudyCache(tmp_path / "three", pairs), **OPTS)
     touched = (changed.a == "s3") | (changed.b == "s3")
     assert (changed.loc[~touched, "count"] == -7).all()
     assert (changed.loc[touched, "count"] >= 0).all()
-    # a seed without a folder is read-only: export does nothing
-    assert StudyCache(None, seed).export() == 0
+    # a table without a folder is read-only: export does nothing
+    assert StudyCache(None, pairs).export() == 0
 
 
-def test_a_bad_seed_is_named(tmp_path):
+def test_a_bad_pairs_table_is_named(tmp_path):
     maps, valid, guns = _fields(2)
-    bad = tmp_path / "seed.parquet"
+    bad = tmp_path / "pairs.parquet"
     bad.write_text("not parquet")
-    with pytest.raises(PsbenchError, match="seed.parquet: not a readable Parquet"):
+    with pytest.raises(PsbenchError, match="pairs.parquet: not a readable Parquet"):
         bf.score_pairs(maps, valid, guns, pixel_size=6.25, cache=StudyCache(None, bad),
                        **OPTS)
     pd.DataFrame({"options": ["x"]}).to_parquet(bad)
