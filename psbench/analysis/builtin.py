@@ -502,22 +502,20 @@ def breechface(part="method", label=None, *, finish=None, integrator=None, seed=
 
 
 # ----------------------------------------------------------------------------- registry
-#: ``study`` keys of an analysis that say how it is computed (not part of a run's id)
-_OPERATIONAL = {"breechface": ("cache", "pairs_table", "jobs")}
-
-
-def _spec(func):
+def _spec(func, operational=()):
     return Analysis(name=func.__name__, func=func,
-                    help=(func.__doc__ or "").strip().split("\n")[0],
-                    operational=_OPERATIONAL.get(func.__name__, ()))
+                    help=(func.__doc__ or "").strip().split("\n")[0], operational=operational)
 
 
 #: psbench's own ``kind=analysis`` computations, registered like a plug-in's (the
 #: ``psbench.analyses`` group of :mod:`psbench.registry`)
-ANALYSES = tuple(_spec(f) for f in (
-    breechface, diffuse_counts, forensic, highlight_truth_options, ie_decomposition,
-    mask_scores, ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
-    table_5_5, table_5_6, wps_table))
+#: (breechface's cache, table of earlier comparisons and process count say how its runs
+#: are computed, not what they compute: they are not part of a run's id)
+ANALYSES = (_spec(breechface, operational=("cache", "pairs_table", "jobs")),) + tuple(
+    _spec(f) for f in (
+        diffuse_counts, forensic, highlight_truth_options, ie_decomposition, mask_scores,
+        ne_vs_image_count, ne_vs_source_zenith, ne_vs_surface_zenith, propose_zeniths,
+        table_5_5, table_5_6, wps_table))
 
 
 __getattr__ = renamed_names(globals(), {"KINDS": "IMAGE_KINDS"})

@@ -24,6 +24,10 @@ __all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_tota
            "totals"]
 
 
+#: heading of a page's thesis verdicts (read back by :func:`.scales.page_verdicts`)
+VERDICTS_HEADING = "Verdicts on the thesis's conclusions"
+
+
 def display_path(path) -> str:
     """A store path as shown on a page: relative to the working folder when inside it,
     else its last two components (pages carry no machine-specific absolute paths)."""
@@ -148,7 +152,7 @@ def experiment_blocks(name, scale, size, rows_all, agg, cmp, verdicts, figs,
                             f"scale. Run `psbench +experiment={name} scale={scale}` first."))
     thesis = [v for v in verdicts if v.thesis]
     own = [v for v in verdicts if not v.thesis]
-    blocks += [("h2", "Verdicts on the thesis's conclusions"), ("totals", _tally(thesis)),
+    blocks += [("h2", VERDICTS_HEADING), ("totals", _tally(thesis)),
                ("verdicts", thesis)]
     if own:
         blocks += [("h2", "psbench's own questions"),

@@ -26,7 +26,7 @@ import pandas as pd
 from psbench._shared.checks import PsbenchError
 
 from . import tables as T
-from .pages import in_totals
+from .pages import VERDICTS_HEADING, in_totals
 
 __all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
            "manifest", "kept", "page_verdicts"]
@@ -162,7 +162,7 @@ def page_verdicts(page, experiment) -> list:
     from .verdicts import Verdict
 
     text = Path(page).read_text(errors="replace") if Path(page).is_file() else ""
-    _, sep, rest = text.partition("## Verdicts on the thesis's conclusions")
+    _, sep, rest = text.partition(f"## {VERDICTS_HEADING}")
     out = []
     if not sep:
         return out
