@@ -8,8 +8,28 @@ import numpy as np
 SAME, OTHER = "#1a9850", "#7f7f7f"
 
 
+_INTEGRATORS = ("poisson", "bilateral")
+
+
 def _labels(scores):
-    return list(dict.fromkeys(zip(scores["method"], scores["integrator"])))
+    """(method, integrator) groups in the study's method order, a method's integrators
+    side by side, the scans (the upper bound) last; stored order would vary per store."""
+    from psbench.forensic.breechface_runs import LABELS
+
+    groups = list(dict.fromkeys(zip(scores["method"], scores["integrator"])))
+    order = {m: i for i, m in enumerate(LABELS)}
+    rank = {g: i for i, g in enumerate(groups)}   # labels not in LABELS keep their order
+
+    def key(g):
+        m, integ = g
+        integ_rank = _INTEGRATORS.index(integ) if integ in _INTEGRATORS else 2
+        return (m == "scan", order.get(m, len(order)), integ_rank, rank[g])
+    return sorted(groups, key=key)
+
+
+def _tick(m, integ):
+    # three short lines, not one long rotated one: 15 groups fit a panel
+    return _name(m, integ).replace("weighted ", "weighted\n").replace(" / ", "\n")
 
 
 def _name(m, integ):
@@ -46,14 +66,17 @@ def roc_figure(scores):
         d = _of(scores, fin)
         for i, (col, what) in enumerate((("count", "CMC count"), ("ccf", "CCFmax"))):
             ax = axes[i, j]
-            for m, integ in _labels(d):
+            labels = _labels(d)
+            # one colour per method, the line style tells the integrator
+            colour = {m: f"C{i % 10}" for i, m in enumerate(dict.fromkeys(m for m, _ in labels))}
+            for m, integ in labels:
                 g = d[(d["method"] == m) & (d["integrator"] == integ)]
                 s, n = g.loc[g["same_gun"], col], g.loc[~g["same_gun"], col]
                 if not len(s) or not len(n):
                     continue
                 x, y = roc(s, n)
                 kw = {"color": "black", "lw": 5, "alpha": 0.35} if m == "scan" else {
-                    "ls": "--" if integ == "bilateral" else "-"}
+                    "color": colour[m], "ls": "--" if integ == "bilateral" else "-"}
                 ax.plot(x, y, drawstyle="steps-post", label=_name(m, integ), **kw)
             ax.plot([0, 1], [0, 1], color="0.8", lw=0.8)
             ax.set_xlabel("false positive rate (different-gun pairs)")
@@ -70,7 +93,7 @@ def score_figure(scores):
 
     fins = _finishes(scores)
     labels = _labels(scores)
-    fig, axes = new_figure(ncols=1, nrows=2 * len(fins), w=max(10.0, 0.7 * len(labels) + 2),
+    fig, axes = new_figure(ncols=1, nrows=2 * len(fins), w=max(10.0, 0.85 * len(labels) + 2),
                            h=4.0)
     axes = np.atleast_1d(np.asarray(axes).ravel())
     rng = np.random.default_rng(0)
@@ -94,8 +117,7 @@ def score_figure(scores):
                 ax.axhline(CMC_THRESHOLD - 0.5, color="black", ls=":", lw=1.0,
                            label=f"decision: >= {CMC_THRESHOLD} cells")
             ax.set_xticks(range(len(labels)))
-            ax.set_xticklabels([_name(m, i).replace(" / ", "\n") for m, i in labels],
-                               rotation=45, ha="right", fontsize=9)
+            ax.set_xticklabels([_tick(m, i) for m, i in labels], fontsize=9)
             ax.set_ylabel(what)
             ax.set_title(f"{fin}: {what} of every pair", fontsize=12)
             ax.grid(True, axis="y", alpha=0.3)

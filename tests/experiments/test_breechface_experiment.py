@@ -114,3 +114,17 @@ def test_ci_scale_end_to_end(tmp_path):
     build(root, out, "ci", log=lambda *a: None, experiments=("breechface",))
     md = (out / "breechface.md").read_text()
     assert md.startswith("# Real breech faces") and "recipe / poisson" in md
+
+
+def test_figure_groups_follow_the_method_order_scans_last():
+    """The score and ROC figures order their groups by the study's method labels, a
+    method's integrators side by side and the scans last, whatever the stored order."""
+    from psbench.experiments._breechface_figures import _labels, _tick
+
+    stored = [("recipe", "bilateral"), ("scan", "-"), ("tsfit", "poisson"),
+              ("None", "bilateral"), ("recipe", "poisson"), ("None", "poisson")]
+    sc = pd.DataFrame(stored, columns=["method", "integrator"])
+    assert _labels(sc) == [("None", "poisson"), ("None", "bilateral"), ("tsfit", "poisson"),
+                           ("recipe", "poisson"), ("recipe", "bilateral"), ("scan", "-")]
+    assert _tick("weighted Th-Hi-Re-Sh", "bilateral") == "weighted\nTh-Hi-Re-Sh\nbilateral"
+    assert _tick("scan", "-") == "scan"
