@@ -114,8 +114,8 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
         s["in_totals"] = G.in_totals(name)
         summaries.append(s)
         verdicts_by[name] = vs
-    for name in kept:               # a kept page's claims, as it states them
-        verdicts_by[name] = S.page_verdicts(out / f"{name}.md", name)
+    for name, entry in kept.items():      # a kept page's claims, as its build stated them
+        verdicts_by[name] = S.kept_verdicts(out, name, entry)
     panel_files = []
     if panels:
         from .panels import build_panels
@@ -133,7 +133,7 @@ def build(results="results", out="reports", scale="full", panels=False, log=prin
                     if getattr(T.experiment_module(n), "NOTES", "")])
     write_page(out, "index", blocks, f"psbench report ({scale})")
     write_atomic(out / S.MANIFEST, S.manifest(scale, G.display_path(results), summaries, now,
-                                              kept, order=names))
+                                              kept, order=names, verdicts=verdicts_by))
     tot = G.totals(summaries, kept)           # the index's totals, kept pages included
     log(f"{scale}-scale report written to {out / 'index.html'} ({len(df)} store rows; "
         f"{tot[V.SUPPORTED]} SUPPORTED, {tot[V.NOT_SUPPORTED]} NOT SUPPORTED, "

@@ -235,7 +235,7 @@ def index_blocks(*, scale, size_text, provenance, summaries, verdicts_by, messag
     ``kept``: ``{experiment: entry}`` of the pages left from an earlier build
     (:func:`psbench.report.scales.kept`): rows of the verdict table (marked kept) and
     counted in the totals like built pages; ``verdicts_by`` holds their claims as their
-    pages state them (:func:`psbench.report.scales.page_verdicts`). ``order``: the
+    builds stated them (:func:`psbench.report.scales.kept_verdicts`). ``order``: the
     experiments' order (default: the registered one, :func:`psbench.report.tables.names`).
     """
     recs = _records(summaries, kept, order)

@@ -29,7 +29,7 @@ from . import tables as T
 from .pages import VERDICTS_HEADING, in_totals
 
 __all__ = ["SCALES", "MANIFEST", "ReportRefused", "folder", "held", "existing", "check",
-           "manifest", "kept", "page_verdicts"]
+           "manifest", "kept", "page_verdicts", "kept_verdicts"]
 
 SCALES = ("full", "ci")
 MANIFEST = "report.json"
@@ -183,6 +183,19 @@ def page_verdicts(page, experiment) -> list:
     return out
 
 
+def kept_verdicts(folder_, experiment, entry) -> list:
+    """A kept page's thesis verdicts: those its build stored in ``report.json`` (the
+    entry's ``claims``), else read from the page (:func:`page_verdicts`: a manifest
+    written before the claims were stored)."""
+    from .verdicts import Verdict
+
+    claims = entry.get("claims")
+    if isinstance(claims, list) and all(isinstance(c, dict) for c in claims):
+        return [Verdict(experiment, str(c.get("claim", "")), str(c.get("status", "")),
+                        str(c.get("detail", "")), str(c.get("quote", ""))) for c in claims]
+    return page_verdicts(Path(folder_) / f"{experiment}.md", experiment)
+
+
 def kept(folder_, runs: dict) -> dict:
     """Pages of an earlier build that this store cannot rebuild.
 
@@ -259,7 +272,8 @@ def check(folder_, scale, runs: dict, results, force=False) -> None:
             f"kept: rerun the experiments to resume, or --force")
 
 
-def manifest(scale, results, summaries, generated, kept_=None, order=None) -> str:
+def manifest(scale, results, summaries, generated, kept_=None, order=None,
+             verdicts=None) -> str:
     """Text of ``report.json``.
 
     Parameters
@@ -273,12 +287,16 @@ def manifest(scale, results, summaries, generated, kept_=None, order=None) -> st
         are; they count in the totals like built pages.
     order : list of str, optional
         Experiment order (default: the registered order, :func:`tables.names`).
+    verdicts : dict, optional
+        ``{experiment: [Verdict]}``: the thesis claims each page states, stored as the
+        entry's ``claims`` (claim, status, detail, quote) so that a later build that
+        keeps the page lists them as they were (:func:`kept_verdicts`).
 
     Returns
     -------
     str
         JSON: scale, store, time, verdict totals, the experiments in them, and per
-        experiment runs, image size and verdict counts.
+        experiment runs, image size, verdict counts and claims.
     """
     exps = {s["experiment"]: {"runs": int(s["ok"]), "failed": int(s["failed"]),
                               "SUPPORTED": int(s["supported"]),
@@ -290,7 +308,11 @@ def manifest(scale, results, summaries, generated, kept_=None, order=None) -> st
     for s in summaries:          # verdicts of an incomplete grid (absent when complete)
         if s.get("provisional"):
             exps[s["experiment"]]["PROVISIONAL"] = int(s["provisional"])
-    exps.update(kept_ or {})
+    exps.update({n: dict(e) for n, e in (kept_ or {}).items()})
+    for n, vs in (verdicts or {}).items():
+        if n in exps:
+            exps[n]["claims"] = [{"claim": v.claim, "status": v.status, "detail": v.detail,
+                                  "quote": v.quote} for v in vs]
     pos = {n: i for i, n in enumerate(order if order is not None else T.names())}
     exps = dict(sorted(exps.items(), key=lambda kv: pos.get(kv[0], len(pos))))
     built = {s["experiment"]: s.get("in_totals", True) for s in summaries}

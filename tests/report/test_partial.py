@@ -94,6 +94,10 @@ def test_ci_report_of_a_fresh_store_keeps_the_pages_it_lacks(tmp_path, capsys):
     assert sum(ln.startswith("| [table5_3]") for ln in listed.splitlines()) == len(claims)
     man = json.loads((out / "ci" / "report.json").read_text())
     assert man["experiments"]["table5_3"]["kept"] is True
+    # the claims travel in report.json (stored when the page was built, carried over)
+    assert S.kept_verdicts(out / "ci", "table5_3", man["experiments"]["table5_3"]) == claims
+    assert [c["claim"] for c in first["claims"]] == [c.claim for c in claims]
+    assert len(man["experiments"]["fig5_12"]["claims"]) == sum(b.values())
     assert man["experiments"]["table5_3"]["size"] == 40
     assert man["experiments"]["fig5_12"]["runs"] == n
     assert man["experiments"]["fig5_12"]["size"] == 32
@@ -214,3 +218,18 @@ def test_page_verdicts_reads_back_the_verdicts_a_page_states(tmp_path):
                                ("own_verdicts", vs[2:])], "x")
     assert S.page_verdicts(tmp_path / "x.md", "x") == vs[:2]
     assert S.page_verdicts(tmp_path / "missing.md", "x") == []
+
+
+def test_kept_verdicts_come_from_the_manifest_else_from_the_page(tmp_path):
+    from psbench.io.html import write_page
+    from psbench.report.verdicts import Verdict
+
+    vs = [Verdict("x", "A beats B", "SUPPORTED", "gap 0.3 deg", "line 12: A"),
+          Verdict("x", "C beats D", "PROVISIONAL", "so far")]
+    write_page(tmp_path, "x", [("h1", "x"), ("h2", "Verdicts on the thesis's conclusions"),
+                               ("verdicts", vs[:1])], "x")
+    entry = json.loads(S.manifest("ci", "results", [], "now", {"x": {"runs": 3}},
+                                  order=["x"], verdicts={"x": vs}))["experiments"]["x"]
+    assert entry["runs"] == 3 and len(entry["claims"]) == 2
+    assert S.kept_verdicts(tmp_path, "x", entry) == vs            # the manifest's, not the page's
+    assert S.kept_verdicts(tmp_path, "x", {"runs": 3}) == vs[:1]  # older manifest: the page
