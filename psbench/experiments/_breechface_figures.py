@@ -68,7 +68,7 @@ def roc_figure(scores):
             ax = axes[i, j]
             labels = _labels(d)
             # one colour per method, the line style tells the integrator
-            colour = {m: f"C{i % 10}" for i, m in enumerate(dict.fromkeys(m for m, _ in labels))}
+            colour = {m: f"C{c % 10}" for c, m in enumerate(dict.fromkeys(m for m, _ in labels))}
             for m, integ in labels:
                 g = d[(d["method"] == m) & (d["integrator"] == integ)]
                 s, n = g.loc[g["same_gun"], col], g.loc[~g["same_gun"], col]
