@@ -52,6 +52,11 @@ Decisions (where the thesis leaves room)
   compiled pass over the images (:mod:`psbench.solve.methods.wps._kernel`); the ring
   normals, albedo and residual are then computed when first read (the same compiled
   ring solves again, bit-identical), as the plain PS residual is.
+* **Saturation** is not treated, as in the thesis: where every image of a ring is
+  clipped at a pixel, the ring's observations are constant, its fit is the flat
+  normal with zero residual, and the residual weights give it the whole weight. On
+  breech faces imaged with the 31° ring overexposed this flattens most of the face
+  (measured in the forensic guide).
 
 Rings are reported in ``Layout.rings()`` order (ring id order), which is the order of
 the ring notation (``"30x8+60x8"``: ring 0 = 30 degrees).
