@@ -471,3 +471,19 @@ def test_ring_outputs_on_demand_equal_the_pass_that_writes_everything(ts_scene, 
     np.testing.assert_array_equal(r.ring_albedo, ra.reshape(2, H, Wd))
     np.testing.assert_array_equal(r.ring_residual, re.reshape(2, H, Wd))
     assert r.ring_normals is r.ring_normals
+
+
+def test_fully_clipped_ring_takes_the_whole_weight():
+    """Saturation is not treated (the docstring says so): where every image of a ring
+    is clipped, that ring's constant observations fit the flat normal exactly, and the
+    residual weights give it everything; elsewhere the weights are shared."""
+    I, lay, n = _scene(noise=0.01)
+    clipped = np.zeros(I.shape[1:], bool)
+    clipped[:, :20] = True
+    ring0 = lay.rings()[0]
+    I = I.copy()
+    I[ring0] = np.where(clipped, np.float32(1.0), I[ring0])
+    r = wps(I, lay)
+    assert np.allclose(r.ring_weights[0][clipped], 1.0, atol=1e-6)
+    assert np.allclose(r.normals[clipped], [0, 0, 1], atol=1e-5)
+    assert r.ring_weights[0][~clipped].max() < 0.99
