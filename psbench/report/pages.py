@@ -8,6 +8,8 @@ every experiment (modules list the thesis's main conclusion first), NOT SUPPORTE
 """
 from __future__ import annotations
 
+import inspect
+import json
 import os
 from pathlib import Path
 
@@ -55,9 +57,47 @@ def _pstr(v):
     return str(v)
 
 
+#: what a render-and-solve run varies; an analysis run (``kind=analysis``) uses none of the
+#: scene or solver keys, only its own ``args`` and ``study`` (listed instead)
+_RUN_KEYS = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model",
+             "shadows", "size", "seed")
+#: study settings that say how a run is computed, not what (not part of its identity)
+_HOW_KEYS = ("cache", "pairs_table", "jobs")
+
+
+def _analysis_keys(rows):
+    """The run settings an analysis receives: those its function names (the harness
+    passes it no others), never the scene and solver defaults it ignores."""
+    from .. import registry
+
+    keys = ["analysis"]
+    for name in rows["analysis"].dropna().unique():
+        try:
+            fn = registry.get("analyses", name, what="analysis").func
+        except (KeyError, ValueError):          # a plug-in not installed here
+            continue
+        keys += [k for k in inspect.signature(fn).parameters
+                 if k in rows and k not in ("args", "study", "analysis")]
+    return list(dict.fromkeys(keys))
+
+
+def _json_columns(rows, column, skip=()):
+    """The keys of a column of JSON objects, as columns (values re-encoded as text)."""
+    recs = [json.loads(v) if isinstance(v, str) and v.startswith("{") else {}
+            for v in rows[column]] if column in rows else []
+    keys = list(dict.fromkeys(k for r in recs for k in r if k not in skip))
+    return pd.DataFrame({k: [None if k not in r else r[k] if np.isscalar(r[k])
+                             else json.dumps(r[k]) for r in recs] for k in keys},
+                        index=rows.index)
+
+
 def _parameters(rows) -> pd.DataFrame:
-    keys = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model", "shadows",
-            "size", "seed")
+    keys = _RUN_KEYS
+    if "kind" in rows and len(rows) and (rows["kind"] == "analysis").all():
+        args = _json_columns(rows, "args")
+        study = _json_columns(rows, "study", skip=_HOW_KEYS).add_prefix("study.")
+        rows = pd.concat([rows[_analysis_keys(rows)], args, study], axis=1)
+        keys = list(rows.columns)
     out = []
     for k in keys:
         if k in rows and rows[k].notna().any():

@@ -215,3 +215,26 @@ def test_parameter_lists_do_not_follow_the_store_order():
     assert a == b
     assert a[0] == {"parameter": "lights", "values": "30x8, 45x8, 60x8"}
     assert a[1] == {"parameter": "noise", "values": "0, 0.1, 0.2"}
+
+
+def test_analysis_runs_list_their_own_settings_not_the_scene_defaults():
+    """An analysis run's parameter table shows what it received (the settings its function
+    names, its args and its study), not the scene and solver defaults it never used, and
+    leaves out the settings that only say how it was computed."""
+    import json
+
+    import pandas as pd
+
+    from psbench.report.pages import _parameters
+
+    rows = pd.DataFrame({
+        "kind": ["analysis"] * 2, "analysis": ["breechface"] * 2, "surface": ["sombrero2"] * 2,
+        "mask": ["Th"] * 2, "size": [512] * 2, "seed": [0, 1],
+        "args": [json.dumps({"label": "None", "finish": "brass"}),
+                 json.dumps({"label": "recipe", "finish": "brass"})],
+        "study": [json.dumps({"folder": "scans", "finishes": ["brass"],
+                              "cache": "results/cache"})] * 2})
+    table = dict(_parameters(rows).itertuples(index=False))
+    assert table == {"analysis": "breechface", "seed": "0, 1", "label": "None, recipe",
+                     "finish": "brass", "study.folder": "scans",
+                     "study.finishes": '["brass"]'}
