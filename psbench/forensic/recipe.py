@@ -42,9 +42,9 @@ Checked afterwards on all 95 shared scans (experiment ``breechface``, brass, Poi
 false negatives at 6 cells (scans: 0 and 0), CMC separation 13 (scans 14), CCF
 separation 0.530 (scans 0.499; least squares 0.505, WPS 0.502, robust 0.463,
 Th-Hi-Re-Sh 0.429). With the bilateral integrator and on nickel it is the same: AUC
-1.000, no false positive or negative; CCF separation 0.533 (brass, bilateral; least squares 0.505), 0.521 and
-0.527 (nickel, Poisson and bilateral; least squares 0.525 with both). None of the
-defaults above was changed for it.
+1.000, no false positive or negative; CCF separation 0.533 (brass, bilateral; least
+squares 0.505), 0.521 and 0.527 (nickel, Poisson and bilateral; least squares 0.525 with
+both). None of the defaults above was changed for it.
 """
 from __future__ import annotations
 
