@@ -19,7 +19,7 @@ import pandas as pd
 from . import present as P
 from . import tables as T
 from . import verdicts as V
-from .aggregates import data_name
+from .aggregates import data_name, parse_json
 from ..io.html import STATUSES, Link
 
 __all__ = ["experiment_blocks", "index_blocks", "wall", "display_path", "in_totals",
@@ -61,30 +61,28 @@ def _pstr(v):
 #: scene or solver keys, only its own ``args`` and ``study`` (listed instead)
 _RUN_KEYS = ("surface", "data", "lights", "noise", "mask", "method", "weight", "model",
              "shadows", "size", "seed")
-#: study settings that say how a run is computed, not what (not part of its identity)
-_HOW_KEYS = ("cache", "pairs_table", "jobs")
 
 
 def _analysis_keys(rows):
-    """The run settings an analysis receives: those its function names (the harness
-    passes it no others), never the scene and solver defaults it ignores."""
+    """The run settings an analysis receives (those its function names: the harness
+    passes it no others) and the ``study`` keys it declares operational (how a run is
+    computed, not what: left out)."""
     from .. import registry
 
-    keys = ["analysis"]
+    specs = registry.analyses()
+    keys, operational = ["analysis"], []
     for name in rows["analysis"].dropna().unique():
-        try:
-            fn = registry.get("analyses", name, what="analysis").func
-        except (KeyError, ValueError):          # a plug-in not installed here
+        if (spec := specs.get(name)) is None:          # a plug-in not installed here
             continue
-        keys += [k for k in inspect.signature(fn).parameters
+        keys += [k for k in inspect.signature(spec.func).parameters
                  if k in rows and k not in ("args", "study", "analysis")]
-    return list(dict.fromkeys(keys))
+        operational += list(spec.operational or ())
+    return list(dict.fromkeys(keys)), set(operational)
 
 
 def _json_columns(rows, column, skip=()):
     """The keys of a column of JSON objects, as columns (values re-encoded as text)."""
-    recs = [json.loads(v) if isinstance(v, str) and v.startswith("{") else {}
-            for v in rows[column]] if column in rows else []
+    recs = [r if isinstance(r := parse_json(v), dict) else {} for v in rows.get(column, [])]
     keys = list(dict.fromkeys(k for r in recs for k in r if k not in skip))
     return pd.DataFrame({k: [None if k not in r else r[k] if np.isscalar(r[k])
                              else json.dumps(r[k]) for r in recs] for k in keys},
@@ -94,9 +92,10 @@ def _json_columns(rows, column, skip=()):
 def _parameters(rows) -> pd.DataFrame:
     keys = _RUN_KEYS
     if "kind" in rows and len(rows) and (rows["kind"] == "analysis").all():
+        own, operational = _analysis_keys(rows)
         args = _json_columns(rows, "args")
-        study = _json_columns(rows, "study", skip=_HOW_KEYS).add_prefix("study.")
-        rows = pd.concat([rows[_analysis_keys(rows)], args, study], axis=1)
+        study = _json_columns(rows, "study", skip=operational).add_prefix("study.")
+        rows = pd.concat([rows[own], args, study], axis=1)
         keys = list(rows.columns)
     out = []
     for k in keys:
